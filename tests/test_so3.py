@@ -1,0 +1,31 @@
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from zrp_ga import so3
+
+
+def test_rodrigues_matches_scipy(rng):
+    u = rng.normal(size=(20, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    q = rng.uniform(-np.pi, np.pi, 20)
+    expected = Rotation.from_rotvec(u * q[:, None]).as_matrix()
+    np.testing.assert_allclose(so3.rodrigues(q, u), expected, atol=1e-14)
+
+
+def test_rodrigues_derivatives_match_finite_differences(rng):
+    u = rng.normal(size=3)  # any axis: Eq. (9-10) differentiate the formula as written
+    q, h = 0.7, 1e-6
+    dR = so3.rodrigues_derivatives(q, u)
+    for k in range(3):
+        e = np.eye(3)[k] * h
+        fd = (so3.rodrigues(q, u + e) - so3.rodrigues(q, u - e)) / (2 * h)
+        np.testing.assert_allclose(dR[k], fd, atol=1e-9)
+
+
+def test_skew_vee_and_log(rng):
+    v, w = rng.normal(size=(2, 3))
+    np.testing.assert_allclose(so3.skew(v) @ w, np.cross(v, w), atol=1e-15)
+    np.testing.assert_allclose(so3.vee(so3.skew(v)), v)
+    rv = rng.normal(size=(5, 3))
+    rv *= 2.5 / np.linalg.norm(rv, axis=1, keepdims=True)
+    np.testing.assert_allclose(so3.log(Rotation.from_rotvec(rv).as_matrix()), rv, atol=1e-12)

@@ -1,0 +1,228 @@
+"""The ZRP error model: pose errors, the error Jacobian (Eq. 21-27) and identifiability.
+
+Parameter errors are ordered as in the paper, ``de = [du0_1 .. du0_n, db0_2 .. db0_{n+1}]``
+(6n values); :func:`pose_jacobians` can append the base point ``db0_1`` and a small rotation
+``dphi_h`` of the hand orientation (``R_h0 <- exp([dphi_h]x) R_h0``).
+
+Identifiability (DESIGN.md section 2). Sliding the point chosen on axis i along ``u_i``
+changes ``b0_i`` and ``b0_{i+1}`` by opposite amounts and leaves every pose unchanged. With
+``b0_1`` fixed this gives n - 1 null directions of the stacked Jacobian of a 6R arm under
+full-pose measurements, whatever the number of poses: for the PUMA 560 the rank is
+36 - 5 = 31 (tests/test_error_model.py checks it over 30 random poses). Under position-only
+measurements an axis that passes through the measured point can tilt unseen: the PUMA 560's
+end point is its wrist centre, on axes 4, 5 and 6, so the two tilts of each of u0_4, u0_5,
+u0_6 that keep unit length are lost too and the rank drops to 36 - 5 - 6 = 25 (also checked).
+A prismatic joint's axis has no fixed point at all: its point can shift in any direction, two
+more null directions per prismatic joint. :func:`identifiability` names all of these.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from zrp_ga import so3
+from zrp_ga.kinematics import check_q
+from zrp_ga.robot import ZRPRobot
+
+Array = NDArray[np.float64]
+
+
+def pose_error(R_meas: ArrayLike, p_meas: ArrayLike, R: ArrayLike, p: ArrayLike, exact: bool = False) -> tuple[Array, Array]:
+    """Measured minus modelled pose: ``dr`` (..., 3) rad and ``dp = p_meas - p`` (..., 3) m.
+
+    ``dr = vee(skew(R_meas R^T))``, the first-order orientation error of Eq. (11-13); with
+    ``exact=True`` the rotation vector ``log(R_meas R^T)`` instead, for errors that are not small.
+    """
+    W = np.asarray(R_meas, dtype=float) @ np.swapaxes(np.asarray(R, dtype=float), -1, -2)
+    dr = so3.log(W) if exact else so3.vee(W)
+    return dr, np.asarray(p_meas, dtype=float) - np.asarray(p, dtype=float)
+
+
+def parameter_names(n: int, base: bool = False, hand: bool = False) -> list[str]:
+    """Names of the columns of :func:`pose_jacobians`: ``u0_1x .. u0_nz, b0_2x .. b0_{n+1}z`` [``b0_1x..z``, ``rh_x..z``]."""
+    names = [f"u0_{i}{c}" for i in range(1, n + 1) for c in "xyz"]
+    names += [f"b0_{i}{c}" for i in range(2, n + 2) for c in "xyz"]
+    if base:
+        names += [f"b0_1{c}" for c in "xyz"]
+    if hand:
+        names += [f"rh_{c}" for c in "xyz"]
+    return names
+
+
+def pose_jacobians(robot: ZRPRobot, q: ArrayLike, base: bool = False, hand: bool = False) -> Array:
+    """Jacobians of ``[dr; dp]`` with respect to the parameter errors at M poses, (M, 6, K).
+
+    K = 6n (+3 with ``base``, +3 with ``hand``), columns as :func:`parameter_names`.
+    Blocks of Eq. (25-27), vectorised over poses (indices 0-based below):
+
+    - J1 joint i, column k: ``vee(R_{i} R_k(q_i) R(q_i)^T R_{i}^T)`` (0 for a prismatic joint);
+    - J3 joint i: ``R_{i} [R_x E_i, R_y E_i, R_z E_i]`` (``q_i R_{i}`` for a prismatic joint);
+    - J4 joint i (for ``db0`` of the next point): ``R_{i+1}``;
+
+    where ``R_i`` is the product of the first i joint rotations and ``E_i`` the tail sum
+    ``E_i = b~0_{i+1} + R(q_{i+1}) E_{i+1}``, ``E_{n-1} = b0_n``.
+    """
+    q = np.atleast_2d(check_q(q, robot.n))
+    M, n = q.shape
+    u0, b0, prism = robot.u0, robot.b0, robot.prismatic
+    rev = (~prism).astype(float)
+    Rot = np.where(prism[:, None, None], np.eye(3), so3.rodrigues(q, u0))  # (M, n, 3, 3)
+    dRot = so3.rodrigues_derivatives(q, u0) * rev[:, None, None, None]  # (M, n, 3, 3, 3)
+    Rprev = np.empty((M, n + 1, 3, 3))
+    Rprev[:, 0] = np.eye(3)
+    for i in range(n):
+        Rprev[:, i + 1] = Rprev[:, i] @ Rot[:, i]
+    bt = np.broadcast_to(b0, (M, n + 1, 3)).copy()
+    bt[:, :n] += np.where(prism, q, 0.0)[..., None] * u0
+    E = np.empty((M, n, 3))
+    E[:, n - 1] = bt[:, n]
+    for i in range(n - 2, -1, -1):
+        E[:, i] = bt[:, i + 1] + np.einsum("mab,mb->ma", Rot[:, i + 1], E[:, i + 1])
+
+    K = 6 * n + 3 * base + 3 * hand
+    J = np.zeros((M, 6, K))
+    # dR_k R^T, rotated into the world: (M, n, 3[k], 3, 3)
+    W = Rprev[:, :n, None] @ dRot @ np.swapaxes(Rot, -1, -2)[:, :, None] @ np.swapaxes(Rprev[:, :n, None], -1, -2)
+    J1 = so3.vee(W)  # (M, n, 3[k], 3[row])
+    J3 = np.einsum("miab,mikbc,mic->mika", Rprev[:, :n], dRot, E)  # (M, n, k, row)
+    J3 = np.where(prism[None, :, None, None], q[:, :, None, None] * np.swapaxes(Rprev[:, :n], -1, -2), J3)
+    J[:, 0:3, : 3 * n] = np.transpose(J1, (0, 3, 1, 2)).reshape(M, 3, 3 * n)
+    J[:, 3:6, : 3 * n] = np.transpose(J3, (0, 3, 1, 2)).reshape(M, 3, 3 * n)
+    J[:, 3:6, 3 * n : 6 * n] = np.transpose(Rprev[:, 1:], (0, 2, 1, 3)).reshape(M, 3, 3 * n)
+    col = 6 * n
+    if base:
+        J[:, 3:6, col : col + 3] = np.eye(3)
+        col += 3
+    if hand:
+        J[:, 0:3, col : col + 3] = Rprev[:, n]
+    return J
+
+
+def unit_rows(robot: ZRPRobot, n_params: int | None = None) -> Array:
+    """The unit-length rows of Eq. (19-20), ``u0_i^T du0_i = 0``: (n, K), K = 6n by default."""
+    n = robot.n
+    U = np.zeros((n, n_params or 6 * n))
+    for i in range(n):
+        U[i, 3 * i : 3 * i + 3] = robot.u0[i]
+    return U
+
+
+def error_jacobian(
+    robot: ZRPRobot, q: ArrayLike, position_only: bool = False, base: bool = False, hand: bool = False
+) -> Array:
+    """The error Jacobian of Eq. (21-27): rows ``[dr; dp]`` of every pose, then the n unit rows.
+
+    q (n,) gives (6 + n, 6n); q (M, n) gives the stacked (6M + n, 6n); with
+    ``position_only`` only the ``dp`` rows are kept: (3M + n, 6n). ``base``/``hand`` append
+    columns for ``db0_1`` and the hand orientation (see :func:`pose_jacobians`).
+
+    >>> from zrp_ga import robots
+    >>> error_jacobian(robots.get("puma560"), np.zeros(6)).shape
+    (12, 36)
+    """
+    Jp = pose_jacobians(robot, q, base=base, hand=hand)
+    if position_only:
+        Jp = Jp[:, 3:]
+    rows = Jp.reshape(-1, Jp.shape[-1])
+    return np.vstack([rows, unit_rows(robot, Jp.shape[-1])])
+
+
+@dataclasses.dataclass(frozen=True)
+class IdentifiabilityReport:
+    """Rank, singular values and the unobservable directions of a stacked error Jacobian.
+
+    ``condition_number`` is ``s_max / s_min`` over the identifiable part (the ``rank``
+    largest singular values); the whole matrix's condition number is infinite when
+    ``rank < n_params``.
+    """
+
+    rank: int
+    n_params: int
+    singular_values: Array
+    condition_number: float
+    null_directions: list[str]
+
+    @property
+    def deficiency(self) -> int:
+        return self.n_params - self.rank
+
+    def __str__(self) -> str:
+        lines = [
+            f"rank {self.rank} of {self.n_params} parameters "
+            f"(condition number of the identifiable part {self.condition_number:.3g})"
+        ]
+        lines += [f"  unidentifiable: {d}" for d in self.null_directions]
+        return "\n".join(lines)
+
+
+def identifiability(
+    J: ArrayLike, names: list[str], robot: ZRPRobot | None = None, rtol: float | None = None
+) -> IdentifiabilityReport:
+    """Identifiability report of a stacked Jacobian ``J`` (rows, K) with column ``names``.
+
+    The rank uses numpy's default tolerance ``s_max * max(J.shape) * eps`` unless ``rtol``
+    (relative to ``s_max``) is given. Null directions are named: first the slides of the point
+    on an axis along that axis (``"b0_3/b0_4 slide along u0_3"``, needs ``robot``), then single
+    parameters with no effect (``"u0_6x has no effect"``), then what is left as its leading
+    parameters (``"combination of 0.71 b0_5z, -0.71 b0_7z"``).
+    """
+    J = np.asarray(J, dtype=float)
+    K = J.shape[1]
+    if len(names) != K:
+        raise ValueError(f"names: {len(names)} names for {K} Jacobian columns")
+    s = np.linalg.svd(J, compute_uv=False)
+    tol = s[0] * (rtol if rtol is not None else max(J.shape) * np.finfo(float).eps)
+    rank = int(np.sum(s > tol))
+    _, _, Vt = np.linalg.svd(J)
+    N = Vt[rank:].T  # (K, d) orthonormal null basis
+    candidates: list[tuple[str, Array]] = []
+    if robot is not None:
+        index = {name: k for k, name in enumerate(names)}
+        for i in range(1, robot.n + 1):
+            a, b = f"b0_{i}x", f"b0_{i + 1}x"
+            if a in index and b in index:
+                v = np.zeros(K)
+                v[index[a] : index[a] + 3] = robot.u0[i - 1]
+                v[index[b] : index[b] + 3] = -robot.u0[i - 1]
+                candidates.append((f"b0_{i}/b0_{i + 1} slide along u0_{i}", v / np.sqrt(2)))
+                if robot.joint_types[i - 1] == "P":
+                    for c, e in zip("xyz", np.eye(3)):
+                        v = np.zeros(K)
+                        v[index[a] : index[a] + 3], v[index[b] : index[b] + 3] = e, -e
+                        label = f"b0_{i}/b0_{i + 1} shift along {c} (prismatic joint {i}: its axis has no fixed point)"
+                        candidates.append((label, v / np.sqrt(2)))
+            # Axis i through the end point e: it can tilt about e unseen by position data. Tilting
+            # u0_i by t moves its point c_i by -L t (L = (e - c_i) . u0_i) to keep e on the axis.
+            c_i = robot.b0[:i].sum(axis=0)
+            arm = robot.b0.sum(axis=0) - c_i
+            L = arm @ robot.u0[i - 1]
+            if np.linalg.norm(arm - L * robot.u0[i - 1]) < 1e-9 and (a in index or L == 0.0):
+                for t in np.linalg.svd(robot.u0[i - 1][None])[2][1:]:  # two tilts normal to u0_i
+                    v = np.zeros(K)
+                    v[index[f"u0_{i}x"] : index[f"u0_{i}x"] + 3] = t
+                    if a in index:
+                        v[index[a] : index[a] + 3] -= L * t
+                    v[index[b] : index[b] + 3] += L * t
+                    label = f"u0_{i} tilts about the end point (axis {i} passes through it)"
+                    candidates.append((label, v / np.linalg.norm(v)))
+    candidates += [(f"{name} has no effect", np.eye(K)[k]) for k, name in enumerate(names)]
+    named, basis = [], np.zeros((K, 0))
+    for label, v in candidates:
+        if N.shape[1] == basis.shape[1]:
+            break
+        in_null = np.linalg.norm(v - N @ (N.T @ v)) < 1e-6
+        new = np.linalg.norm(v - basis @ (basis.T @ v)) > 1e-6 if basis.size else True
+        if in_null and new:
+            named.append(label)
+            basis = np.linalg.qr(np.column_stack([basis, v]))[0]
+    rest = N - basis @ (basis.T @ N)
+    U, sv, _ = np.linalg.svd(rest, full_matrices=False)
+    for v in U[:, sv > 1e-6].T:
+        top = np.argsort(-np.abs(v))[:4]
+        parts = [f"{v[k]:+.2f} {names[k]}" for k in top if abs(v[k]) > 0.05]
+        named.append("combination of " + ", ".join(parts))
+    cond = float(s[0] / s[rank - 1]) if rank else float("inf")
+    return IdentifiabilityReport(rank, K, s, cond, named)

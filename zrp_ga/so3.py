@@ -1,0 +1,82 @@
+"""Rotations in the form the ZRP calibration paper writes them.
+
+Rodrigues' formula as Eq. (6-8) of the paper, ``R = V A + S B + I``, its derivative with
+respect to the components of the (not necessarily unit) axis, Eq. (9-10), and the small
+helpers around it: skew, vee, and the rotation-vector logarithm.
+
+Shapes: ``R3`` is ``(..., 3)``, ``SO3`` is ``(..., 3, 3)``; angles in rad.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+R3 = NDArray[np.float64]  # (..., 3)
+SO3 = NDArray[np.float64]  # (..., 3, 3)
+
+_E = np.eye(3)
+
+
+def skew(v: ArrayLike) -> SO3:
+    """Skew matrix ``[v]x`` so that ``skew(v) @ w == cross(v, w)``; ``v`` of shape (..., 3).
+
+    >>> skew([1.0, 2.0, 3.0]) @ np.array([0.0, 0.0, 1.0])
+    array([ 2., -1.,  0.])
+    """
+    v = np.asarray(v, dtype=float)
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    o = np.zeros_like(x)
+    return np.stack([np.stack([o, -z, y], -1), np.stack([z, o, -x], -1), np.stack([-y, x, o], -1)], -2)
+
+
+def vee(W: ArrayLike) -> R3:
+    """Vector of the skew part of ``W`` (..., 3, 3): ``vee((W - W^T) / 2)``, elements (3,2), (1,3), (2,1).
+
+    Taking the skew part first makes the result immune to round-off in a nearly skew ``W``
+    (DESIGN.md section 2).
+
+    >>> vee(skew([0.1, -0.2, 0.3]))
+    array([ 0.1, -0.2,  0.3])
+    """
+    W = np.asarray(W, dtype=float)
+    return 0.5 * np.stack(
+        [W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0], W[..., 1, 0] - W[..., 0, 1]], -1
+    )
+
+
+def rodrigues(q: ArrayLike, u: ArrayLike) -> SO3:
+    """Rotation by ``q`` (rad) about axis ``u``: ``R = V A + S B + I``, Eq. (6-8).
+
+    ``V = 1 - cos q``, ``S = sin q``, ``A = u u^T - I``, ``B = [u]x``. ``q`` broadcasts against
+    the leading shape of ``u`` (..., 3). For a unit ``u`` this is a proper rotation.
+
+    >>> np.round(rodrigues(np.pi / 2, [0.0, 0.0, 1.0]) @ [1.0, 0.0, 0.0], 12)
+    array([0., 1., 0.])
+    """
+    u = np.asarray(u, dtype=float)
+    q = np.asarray(q, dtype=float)[..., None, None]
+    A = u[..., :, None] * u[..., None, :] - _E
+    return (1.0 - np.cos(q)) * A + np.sin(q) * skew(u) + _E
+
+
+def rodrigues_derivatives(q: ArrayLike, u: ArrayLike) -> NDArray[np.float64]:
+    """``dR/du_x, dR/du_y, dR/du_z`` of :func:`rodrigues`, Eq. (9-10), shape (..., 3, 3, 3).
+
+    ``R_k = V (e_k u^T + u e_k^T) + S [e_k]x``; index ``[..., k, :, :]`` is ``R_k``.
+    """
+    u = np.asarray(u, dtype=float)
+    q = np.asarray(q, dtype=float)[..., None, None, None]
+    eu = _E[:, :, None] * u[..., None, None, :]  # e_k u^T, (..., 3, 3, 3)
+    return (1.0 - np.cos(q)) * (eu + np.swapaxes(eu, -1, -2)) + np.sin(q) * skew(_E)
+
+
+def log(R: ArrayLike) -> R3:
+    """Rotation vector (axis times angle, rad) of the rotation matrices ``R`` (..., 3, 3).
+
+    >>> np.round(log(rodrigues(0.3, [0.0, 1.0, 0.0])), 12)
+    array([0. , 0.3, 0. ])
+    """
+    R = np.asarray(R, dtype=float)
+    return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(R.shape[:-1])
