@@ -29,3 +29,10 @@ def test_skew_vee_and_log(rng):
     rv = rng.normal(size=(5, 3))
     rv *= 2.5 / np.linalg.norm(rv, axis=1, keepdims=True)
     np.testing.assert_allclose(so3.log(Rotation.from_rotvec(rv).as_matrix()), rv, atol=1e-12)
+
+
+def test_left_jacobian_matches_finite_differences(rng):
+    phi, d, h = rng.normal(size=3), rng.normal(size=3), 1e-6
+    R = Rotation.from_rotvec
+    W = (R(phi + h * d).as_matrix() - R(phi - h * d).as_matrix()) / (2 * h) @ R(phi).as_matrix().T
+    np.testing.assert_allclose(so3.vee(W), so3.left_jacobian(phi) @ d, atol=1e-8)

@@ -66,8 +66,12 @@ def pose_jacobians(robot: ZRPRobot, q: ArrayLike, base: bool = False, hand: bool
     ``E_i = b~0_{i+1} + R(q_{i+1}) E_{i+1}``, ``E_{n-1} = b0_n``.
     """
     q = np.atleast_2d(check_q(q, robot.n))
+    return jacobian_arrays(robot.u0, robot.b0, robot.prismatic, q, base, hand)
+
+
+def jacobian_arrays(u0: Array, b0: Array, prism: NDArray[np.bool_], q: Array, base: bool = False, hand: bool = False) -> Array:
+    """:func:`pose_jacobians` on raw arrays, u0 (n, 3) not necessarily unit, q (M, n); no checks."""
     M, n = q.shape
-    u0, b0, prism = robot.u0, robot.b0, robot.prismatic
     rev = (~prism).astype(float)
     Rot = np.where(prism[:, None, None], np.eye(3), so3.rodrigues(q, u0))  # (M, n, 3, 3)
     dRot = so3.rodrigues_derivatives(q, u0) * rev[:, None, None, None]  # (M, n, 3, 3, 3)
@@ -159,7 +163,7 @@ class IdentifiabilityReport:
 
 
 def identifiability(
-    J: ArrayLike, names: list[str], robot: ZRPRobot | None = None, rtol: float | None = None
+    J: ArrayLike, names: list[str], robot: ZRPRobot | None = None, rtol: float | None = None, max_listed: int = 4
 ) -> IdentifiabilityReport:
     """Identifiability report of a stacked Jacobian ``J`` (rows, K) with column ``names``.
 
@@ -167,7 +171,7 @@ def identifiability(
     (relative to ``s_max``) is given. Null directions are named: first the slides of the point
     on an axis along that axis (``"b0_3/b0_4 slide along u0_3"``, needs ``robot``), then single
     parameters with no effect (``"u0_6x has no effect"``), then what is left as its leading
-    parameters (``"combination of 0.71 b0_5z, -0.71 b0_7z"``).
+    parameters (``"combination of 0.71 b0_5z, -0.71 b0_7z"``), at most ``max_listed`` of them.
     """
     J = np.asarray(J, dtype=float)
     K = J.shape[1]
@@ -220,9 +224,12 @@ def identifiability(
             basis = np.linalg.qr(np.column_stack([basis, v]))[0]
     rest = N - basis @ (basis.T @ N)
     U, sv, _ = np.linalg.svd(rest, full_matrices=False)
-    for v in U[:, sv > 1e-6].T:
+    rest_dirs = U[:, sv > 1e-6].T
+    for v in rest_dirs[:max_listed]:
         top = np.argsort(-np.abs(v))[:4]
         parts = [f"{v[k]:+.2f} {names[k]}" for k in top if abs(v[k]) > 0.05]
         named.append("combination of " + ", ".join(parts))
+    if len(rest_dirs) > max_listed:
+        named.append(f"... and {len(rest_dirs) - max_listed} more combinations: too few measurements for the parameters")
     cond = float(s[0] / s[rank - 1]) if rank else float("inf")
     return IdentifiabilityReport(rank, K, s, cond, named)

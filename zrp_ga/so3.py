@@ -80,3 +80,18 @@ def log(R: ArrayLike) -> R3:
     """
     R = np.asarray(R, dtype=float)
     return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(R.shape[:-1])
+
+
+def left_jacobian(phi: ArrayLike) -> SO3:
+    """Left Jacobian of SO(3) at the rotation vector ``phi`` (3,): ``exp([phi + d]x) =
+    exp([J_l d]x) exp([phi]x)`` to first order in ``d``.
+
+    >>> np.allclose(left_jacobian(np.zeros(3)), np.eye(3))
+    True
+    """
+    phi = np.asarray(phi, dtype=float)
+    t = np.linalg.norm(phi)
+    K = skew(phi)
+    if t < 1e-8:
+        return _E + 0.5 * K + K @ K / 6.0
+    return _E + (1.0 - np.cos(t)) / t**2 * K + (t - np.sin(t)) / t**3 * K @ K

@@ -1,0 +1,109 @@
+import numpy as np
+import pytest
+
+from zrp_ga import kinematics, robots
+from zrp_ga.problem import CalibrationProblem, Layout, Measurements, simulate
+
+
+def _problem(rng, cost="nonlinear", noise=True, n_poses=20, robot="puma560", **kw):
+    arm = robots.get(robot)
+    layout = Layout(arm.n, **kw)
+    sim = simulate(arm, layout, rng, n_poses=n_poses, n_validation=30, joint_noise=1e-3 if noise else 0.0)
+    half = np.r_[np.full(3 * arm.n, 0.02), np.full(layout.size - 3 * arm.n, 1e-3)]
+    return CalibrationProblem(arm, sim.calibration, layout, -half, half, sim.validation, cost=cost, true_de=sim.true_de), sim
+
+
+@pytest.mark.parametrize("robot", ["puma560", "stanford"])
+@pytest.mark.parametrize("extra", [{}, {"base": True, "hand": True}])
+def test_nonlinear_cost_is_zero_at_the_truth_without_noise(rng, robot, extra):
+    prob, sim = _problem(rng, noise=False, robot=robot, **extra)
+    assert prob.costs(sim.true_de)[0] < 1e-12
+    rms, vmax = prob.validation_error(sim.true_de)
+    assert rms[0] < 1e-9 and vmax[0] < 1e-9
+    assert prob.costs(np.zeros(prob.layout.size))[0] > 1e-4
+    assert prob.param_error(sim.true_de)[0] < 1e-15
+
+
+def test_linear_cost_equals_nonlinear_to_first_order(rng):
+    """For small errors (true errors and trial errors alike) the two residuals differ at second order."""
+    arm = robots.get("puma560")
+    layout = Layout(6)
+
+    def pair(scale):
+        sim = simulate(arm, layout, np.random.default_rng(5), n_poses=5, axis_error=scale, body_error=scale, joint_noise=0.0)
+        kw = dict(nominal=arm, calibration=sim.calibration, layout=layout, lower=-1.0, upper=1.0)
+        return CalibrationProblem(cost="linear", **kw), CalibrationProblem(cost="nonlinear", **kw)
+
+    d = rng.normal(size=36)
+    d[:18] -= (d[:18].reshape(6, 3) * arm.u0).sum(1).repeat(3) * arm.u0.ravel()  # tangent: keeps unit length
+
+    def gap(scale):
+        lin, non = pair(scale)
+        size = np.abs(lin.residual(scale * d)).max()
+        return np.abs(lin.residual(scale * d) - non.residual(scale * d)).max(), size
+
+    (g1, s1), (g2, _) = gap(1e-4), gap(1e-5)
+    assert g1 < 1e-3 * s1
+    assert 50 < g1 / g2 < 200  # the difference is second order
+
+
+def test_jacobian_matches_finite_differences_of_the_residual(rng):
+    prob, sim = _problem(rng, n_poses=4, base=True, hand=True)
+    de, h = sim.true_de * 0.7, 1e-7
+    J = prob.jacobian(de)
+    fd = np.stack([(prob.residual(de + h * e) - prob.residual(de - h * e)) / (2 * h) for e in np.eye(de.size)], 1)
+    np.testing.assert_allclose(-J, fd, atol=1e-6 * np.abs(J).max())
+
+
+def test_costs_of_a_population_by_hand(rng):
+    prob, _ = _problem(rng, n_poses=6)
+    P = rng.uniform(prob.lower, prob.upper, size=(5, 36))
+    expected = [np.linalg.norm(prob.residual(p)) for p in P]
+    np.testing.assert_allclose(prob.costs(P), expected, rtol=1e-12)
+    rms = CalibrationProblem(prob.nominal, prob.calibration, prob.layout, prob.lower, prob.upper, cost="nonlinear", norm="rms")
+    np.testing.assert_allclose(rms.costs(P), np.array(expected) / np.sqrt(6 * 6 + 6), rtol=1e-12)
+
+
+def test_pinv_step_solves_the_linear_problem_and_stays_in_range(rng):
+    prob, _ = _problem(rng, cost="linear", n_poses=1)
+    de = rng.uniform(prob.lower, prob.upper) * 0.5
+    new = prob.refine(de)
+    assert prob.costs(new)[0] < 1e-6 * prob.costs(de)[0]
+    assert np.all((new >= prob.lower) & (new <= prob.upper))
+
+
+def test_canonical_keeps_every_pose(rng):
+    prob, sim = _problem(rng, n_poses=8)
+    de = sim.true_de.copy()
+    axis = prob.nominal.u0[1] + de[3:6]
+    axis /= np.linalg.norm(axis)
+    de[18:21] += 0.3 * axis  # slide the point on axis 2 far along its (true) axis
+    de[21:24] -= 0.3 * axis
+    assert prob.costs(de)[0] == pytest.approx(prob.costs(sim.true_de)[0], rel=1e-9)
+    c = prob.canonical(de)
+    assert np.abs(c[18:]).max() < 2e-3
+    np.testing.assert_allclose(prob.costs(c), prob.costs(de), rtol=1e-9)
+
+
+def test_nan_genes_give_nan_cost_not_an_error(rng):
+    prob, _ = _problem(rng, n_poses=3)
+    P = np.zeros((3, 36))
+    P[1, 0] = np.nan
+    P[2, :3] = -prob.nominal.u0[0]  # an axis of length zero
+    c = prob.costs(P)
+    assert np.isfinite(c[0]) and not np.isfinite(c[1]) and not np.isfinite(c[2])
+
+
+def test_measurements_refuse_bad_shapes():
+    with pytest.raises(ValueError, match=r"measurements.p: expected shape \(2, 3\)"):
+        Measurements(q=np.zeros((2, 6)), p=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="measurements.p: NaN or inf"):
+        Measurements(q=np.zeros((1, 6)), p=[[0, np.nan, 0]])
+
+
+def test_simulated_measurements_follow_the_true_robot(rng):
+    arm = robots.get("ur10")
+    sim = simulate(arm, Layout(6), rng, n_poses=4, joint_noise=0.0)
+    R, p = kinematics.forward(sim.truth, sim.calibration.q)
+    np.testing.assert_allclose(sim.calibration.p, p)
+    assert np.abs(sim.true_de[18:]).max() <= 5e-4 and np.abs(sim.true_de[:18]).max() < 0.011

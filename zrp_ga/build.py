@@ -1,0 +1,108 @@
+"""Objects from the composed config: robot, problem, GA settings and toolbox.
+
+Every check names the config key it refuses (``crossover.prob``), so that a bad setting stops
+the run with one line before anything is computed.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+from hydra.utils import instantiate
+from omegaconf import DictConfig
+
+from zrp_ga import ga, robots
+from zrp_ga.problem import CalibrationProblem, Layout, Simulation, simulate
+from zrp_ga.robot import ZRPRobot
+
+log = logging.getLogger(__name__)
+
+FAMILIES = ("crossover", "mutation", "inversion", "rotation")
+
+
+class ConfigError(ValueError):
+    """A setting that cannot run; the message names the key."""
+
+
+def robot(cfg: DictConfig) -> ZRPRobot:
+    """The preset ``cfg.name``, or the ZRP YAML file ``cfg.file``."""
+    if cfg.get("file"):
+        return ZRPRobot.from_yaml(Path(cfg.file).expanduser())
+    return robots.get(cfg.name)
+
+
+def problem(cfg: DictConfig, arm: ZRPRobot, seed: int) -> tuple[CalibrationProblem, Simulation]:
+    """A simulated calibration problem (the paper's case study and its multi-pose forms)."""
+    if cfg.kind != "simulated":
+        raise ConfigError(f"problem.kind: unknown kind {cfg.kind!r}; known: simulated")
+    for key in ("n_poses", "n_validation"):
+        if cfg[key] < (1 if key == "n_poses" else 0):
+            raise ConfigError(f"problem.{key}: must be at least {1 if key == 'n_poses' else 0}, got {cfg[key]}")
+    for key in ("axis_error", "body_error", "joint_noise", "position_noise", "orientation_noise", "search_scale"):
+        if not cfg[key] >= 0:
+            raise ConfigError(f"problem.{key}: must be >= 0, got {cfg[key]}")
+    layout = Layout(arm.n, base=cfg.identify_base, hand=cfg.identify_hand)
+    rng = np.random.default_rng(seed if cfg.seed is None else cfg.seed)
+    sim = simulate(
+        arm, layout, rng, n_poses=cfg.n_poses, n_validation=cfg.n_validation, axis_error=cfg.axis_error,
+        body_error=cfg.body_error, joint_noise=cfg.joint_noise, position_noise=cfg.position_noise,
+        orientation_noise=cfg.orientation_noise, position_only=cfg.position_only,
+    )  # fmt: skip
+    half = np.empty(layout.size)
+    for name, block in layout.blocks.items():
+        half[block] = cfg.axis_error if name in ("u0", "hand") else cfg.body_error
+    half *= cfg.search_scale
+    if not np.all(half > 0):
+        raise ConfigError("problem.search_scale, axis_error, body_error: every gene range must be wider than zero")
+    try:
+        prob = CalibrationProblem(
+            nominal=arm, calibration=sim.calibration, validation=sim.validation if cfg.n_validation else None,
+            layout=layout, lower=-half, upper=half, cost=cfg.cost, norm=cfg.norm,
+            orientation_weight=cfg.orientation_weight, true_de=sim.true_de, rcond=cfg.rcond,
+        )  # fmt: skip
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    return prob, sim
+
+
+def settings(cfg: DictConfig) -> ga.GASettings:
+    """GA sizes, probabilities and stop criteria; errors name the config key."""
+    pop, alg = cfg.population, cfg.algorithm
+    for family in FAMILIES:
+        p = cfg[family].prob
+        if not (isinstance(p, (int, float)) and 0.0 <= p <= 1.0):
+            raise ConfigError(f"{family}.prob: probability {p} is outside [0, 1]")
+    if not 0.0 <= cfg.refine.share <= 1.0:
+        raise ConfigError(f"refine.share: {cfg.refine.share} is outside [0, 1]")
+    for key in ("mu", "lambda_"):
+        if pop[key] < 1:
+            raise ConfigError(f"population.{key}: must be at least 1, got {pop[key]}")
+    try:
+        return ga.GASettings(
+            mu=pop.mu, lambda_=pop.lambda_, generations=pop.generations, max_evals=pop.max_evals,
+            target_cost=alg.get("target_cost"), stagnation=alg.get("stagnation"),
+            strategy=alg.get("strategy", "mu_plus_lambda"), elite=alg.get("elite", 1),
+            p_cx=cfg.crossover.prob, p_mut=cfg.mutation.prob, p_inv=cfg.inversion.prob, p_rot=cfg.rotation.prob,
+            refine_share=cfg.refine.share,
+        )  # fmt: skip
+    except ValueError as exc:
+        raise ConfigError(f"algorithm/population: {exc}") from None
+
+
+def toolbox(cfg: DictConfig, prob: CalibrationProblem, rng: np.random.Generator):
+    """The DEAP toolbox of the configured operators ("none" registers nothing)."""
+    ops = {}
+    for family in FAMILIES + ("selection",):
+        node = cfg[family].get("op")
+        try:
+            ops[family] = instantiate(node) if node is not None else None
+        except Exception as exc:  # hydra wraps import errors; keep the first line
+            raise ConfigError(f"{family}.op: cannot build it ({str(exc).splitlines()[0]})") from None
+    if ops["selection"] is None:
+        raise ConfigError("selection.op: a selection operator is required")
+    return ga.build_toolbox(
+        prob, rng, ops["crossover"], ops["mutation"], ops["inversion"], ops["rotation"], ops["selection"],
+        repair=cfg.algorithm.get("repair", "clip"),
+    )

@@ -1,0 +1,256 @@
+"""The genetic algorithm of the ZRP calibration paper (Section 6) on DEAP.
+
+The DEAP types (a minimising fitness and a numpy-genome individual) are created once, here, in
+a package module, so that parallel launchers can unpickle them. The toolbox registers the
+operators chosen by the config (``mate``, ``mutate``, ``invert``, ``rotate``, ``select``,
+``repair``, ``refine``, ``evaluate``); :func:`evolve` runs them on a whole generation at once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import time
+from collections.abc import Callable
+
+import numpy as np
+from deap import base, creator, tools
+from numpy.typing import NDArray
+
+from zrp_ga.operators import repair as repair_genes
+from zrp_ga.problem import CalibrationProblem
+
+Array = NDArray[np.float64]
+
+if not hasattr(creator, "ZRPFitness"):
+    creator.create("ZRPFitness", base.Fitness, weights=(-1.0,))
+    creator.create("ZRPIndividual", np.ndarray, fitness=creator.ZRPFitness)
+
+STRATEGIES = ("mu_plus_lambda", "mu_comma_lambda", "generational")
+
+
+@dataclasses.dataclass(frozen=True)
+class GASettings:
+    """Sizes, probabilities and stop criteria of one GA run (validated on construction)."""
+
+    mu: int = 20
+    lambda_: int = 20
+    generations: int | None = 11
+    max_evals: int | None = None
+    target_cost: float | None = None
+    stagnation: int | None = None
+    strategy: str = "mu_plus_lambda"
+    elite: int = 1
+    p_cx: float = 0.8
+    p_mut: float = 0.2
+    p_inv: float = 0.1
+    p_rot: float = 0.1
+    refine_share: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("p_cx", "p_mut", "p_inv", "p_rot", "refine_share"):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f"{name}: probability {value} is outside [0, 1]")
+        if self.mu < 1:
+            raise ValueError(f"population.mu: must be at least 1, got {self.mu}")
+        if self.lambda_ < 1:
+            raise ValueError(f"population.lambda_: must be at least 1, got {self.lambda_}")
+        if self.strategy not in STRATEGIES:
+            raise ValueError(f"algorithm.strategy: unknown {self.strategy!r}; known: {', '.join(STRATEGIES)}")
+        if self.strategy != "mu_plus_lambda" and self.lambda_ < self.mu:
+            raise ValueError(f"algorithm.strategy {self.strategy} needs lambda_ >= mu, got {self.lambda_} < {self.mu}")
+        if not 0 <= self.elite <= self.mu:
+            raise ValueError(f"algorithm.elite: must be in [0, mu={self.mu}], got {self.elite}")
+        if self.generations is None and self.max_evals is None:
+            raise ValueError("population: set generations or max_evals, or both")
+        for name in ("generations", "max_evals", "stagnation"):
+            value = getattr(self, name)
+            if value is not None and value < 0:
+                raise ValueError(f"{name}: must be >= 0, got {value}")
+
+
+@dataclasses.dataclass
+class RunResult:
+    """What a run found; the GA, LM and CMA-ES all return one."""
+
+    best: Array
+    best_cost: float
+    initial_genes: Array
+    initial_costs: Array
+    nevals: int
+    stop_reason: str
+    logbook: tools.Logbook | None = None
+    hall_of_fame: tools.HallOfFame | None = None
+
+
+def bind(op: Callable | None, rng: np.random.Generator, **available) -> Callable | None:
+    """``op`` with ``rng`` and whichever of ``available`` (low, up, blocks) it takes bound."""
+    if op is None:
+        return None
+    params = inspect.signature(op).parameters
+    extra = {k: v for k, v in available.items() if k in params and k not in getattr(op, "keywords", {})}
+    return lambda *args: op(*args, rng=rng, **extra)
+
+
+def build_toolbox(
+    problem: CalibrationProblem,
+    rng: np.random.Generator,
+    mate: Callable | None,
+    mutate: Callable | None,
+    invert: Callable | None,
+    rotate: Callable | None,
+    select: Callable,
+    repair: str = "clip",
+) -> base.Toolbox:
+    """A DEAP toolbox with the chosen operators bound to the problem's ranges and blocks."""
+    blocks = [(s.start, s.stop) for s in problem.layout.blocks.values()]
+    avail = dict(low=problem.lower, up=problem.upper, blocks=blocks)
+    toolbox = base.Toolbox()
+    for alias, op in (("mate", mate), ("mutate", mutate), ("invert", invert), ("rotate", rotate)):
+        bound = bind(op, rng, **avail)
+        if bound is not None:
+            toolbox.register(alias, bound)
+    toolbox.register("select", bind(select, rng))
+    toolbox.register("repair", repair_genes, low=problem.lower, up=problem.upper, method=repair)
+    toolbox.register("refine", problem.refine)
+    toolbox.register("evaluate", problem.costs)
+    return toolbox
+
+
+def _stats(costs: Array) -> dict[str, float]:
+    finite = costs[np.isfinite(costs)]
+    if finite.size == 0:
+        return dict(best=np.nan, mean=np.nan, median=np.nan, std=np.nan, worst=np.nan)
+    return dict(best=finite.min(), mean=finite.mean(), median=np.median(finite), std=finite.std(), worst=finite.max())
+
+
+def _rank(costs: Array) -> Array:
+    """Indices from best to worst, NaN and inf last, ties in order (stable)."""
+    return np.argsort(np.where(np.isfinite(costs), costs, np.inf), kind="stable")
+
+
+def evolve(
+    problem: CalibrationProblem,
+    toolbox: base.Toolbox,
+    settings: GASettings,
+    rng: np.random.Generator,
+    on_generation: Callable[[dict, Array, float], None] | None = None,
+) -> RunResult:
+    """Run the GA; ``on_generation(row, best_genome, best_cost)`` is called after every generation.
+
+    Pseudocode (the paper's steps 5-10, in DEAP's ``eaMuPlusLambda`` shape)::
+
+        pop <- mu genomes uniform in the gene ranges; evaluate
+        repeat
+            parents   <- select(pop, lambda)                    (tournament, truncation)
+            offspring <- copies of parents
+            pairs cross with p_cx; each child mutates with p_mut, inverts with p_inv,
+            rotates with p_rot; genes repaired into their ranges
+            a share of the children takes the pseudo-inverse step (step 8); repaired
+            evaluate the changed children in one vectorised call   (NaN/inf -> worst)
+            pop <- best mu of pop + offspring       (mu_plus_lambda, step 9)
+                   best mu of offspring             (mu_comma_lambda)
+                   elite best of pop + best of offspring (generational)
+        until generations, evaluations, target cost or stagnation
+    """
+    s = settings
+    K = problem.layout.size
+    t_start = time.perf_counter()
+    pop = rng.uniform(problem.lower, problem.upper, size=(s.mu, K))
+    costs = toolbox.evaluate(pop)
+    initial_genes, initial_costs = pop.copy(), costs.copy()
+    nevals = s.mu
+    logbook = tools.Logbook()
+    hof = tools.HallOfFame(5, similar=np.array_equal)
+    since_improved = 0
+
+    def record(gen: int, n_nonfinite: int, t_eval: float, t_var: float, t_refine: float) -> dict:
+        order = _rank(costs)
+        top = []
+        for k in order[:5]:
+            ind = creator.ZRPIndividual(pop[k])
+            ind.fitness.values = (costs[k] if np.isfinite(costs[k]) else np.inf,)
+            top.append(ind)
+        hof.update(top)
+        row = dict(gen=gen, nevals=nevals, **_stats(costs), n_nonfinite=n_nonfinite)
+        row.update(eval_s=t_eval, variation_s=t_var, refine_s=t_refine, wall_s=time.perf_counter() - t_start)
+        logbook.record(**row)
+        if on_generation is not None:
+            on_generation(row, pop[order[0]], costs[order[0]])
+        return row
+
+    best_seen = record(0, int(np.sum(~np.isfinite(costs))), 0.0, 0.0, 0.0)["best"]
+    gen, stop = 0, ""
+    while not stop:
+        gen += 1
+        lam = s.lambda_ if s.max_evals is None else max(1, min(s.lambda_, s.max_evals - nevals))
+        t0 = time.perf_counter()
+        parents = toolbox.select(costs, lam)
+        off = pop[parents].copy()
+        off_costs = costs[parents].copy()
+        changed = np.zeros(lam, dtype=bool)
+        if hasattr(toolbox, "mate") and s.p_cx > 0:
+            pairs = np.flatnonzero(rng.random(lam // 2) < s.p_cx)
+            if pairs.size:
+                a, b = off[2 * pairs], off[2 * pairs + 1]
+                toolbox.mate(a, b)
+                off[2 * pairs], off[2 * pairs + 1] = a, b
+                changed[2 * pairs] = changed[2 * pairs + 1] = True
+        for alias, p in (("mutate", s.p_mut), ("invert", s.p_inv), ("rotate", s.p_rot)):
+            if hasattr(toolbox, alias) and p > 0:
+                who = np.flatnonzero(rng.random(lam) < p)
+                if who.size:
+                    block = off[who]
+                    getattr(toolbox, alias)(block)
+                    off[who] = block
+                    changed[who] = True
+        toolbox.repair(off)
+        t_var = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        n_refine = int(round(s.refine_share * lam))
+        refined = rng.choice(lam, size=n_refine, replace=False) if n_refine else np.empty(0, dtype=int)
+        with np.errstate(all="ignore"):
+            for k in refined:
+                try:
+                    off[k] = toolbox.refine(off[k])
+                except np.linalg.LinAlgError:  # a degenerate genome: leave it to selection
+                    continue
+        if refined.size:
+            toolbox.repair(off)
+            changed[refined] = True
+        t_refine = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        new = np.flatnonzero(changed)  # unchanged clones keep their parent's cost
+        if new.size:
+            off_costs[new] = toolbox.evaluate(off[new])
+        t_eval = time.perf_counter() - t0
+        nevals += new.size + refined.size  # a pseudo-inverse step evaluates its residual once
+        t0 = time.perf_counter()
+        if s.strategy == "mu_plus_lambda" or lam < s.mu:
+            genes, pool = np.vstack([pop, off]), np.concatenate([costs, off_costs])
+            order = _rank(pool)[: s.mu]
+        elif s.strategy == "mu_comma_lambda":
+            genes, pool = off, off_costs
+            order = _rank(pool)[: s.mu]
+        else:  # generational with elitism
+            genes, pool = np.vstack([pop, off]), np.concatenate([costs, off_costs])
+            order = np.concatenate([_rank(costs)[: s.elite], len(costs) + _rank(off_costs)[: s.mu - s.elite]])
+        pop, costs = genes[order], pool[order]
+        t_var += time.perf_counter() - t0
+        n_bad = int(np.sum(~np.isfinite(off_costs[new])))
+        row = record(gen, n_bad, t_eval, t_var, t_refine)
+        if row["best"] < best_seen * (1.0 - 1e-12):
+            best_seen, since_improved = row["best"], 0
+        else:
+            since_improved += 1
+        if s.generations is not None and gen >= s.generations:
+            stop = "generations"
+        elif s.max_evals is not None and nevals >= s.max_evals:
+            stop = "max_evals"
+        elif s.target_cost is not None and row["best"] <= s.target_cost:
+            stop = "target_cost"
+        elif s.stagnation and since_improved >= s.stagnation:
+            stop = "stagnation"
+    best = _rank(costs)[0]
+    return RunResult(pop[best].copy(), float(costs[best]), initial_genes, initial_costs, nevals, stop, logbook, hof)

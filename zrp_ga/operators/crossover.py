@@ -1,0 +1,79 @@
+"""Crossover: one-point, two-point, uniform, blend, simulated binary (bounded)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from zrp_ga.operators import Array, rows
+
+
+def _swap(A: Array, B: Array, mask: np.ndarray) -> None:
+    a = A.copy()  # numpy slices are views: swap through a copy
+    A[:] = np.where(mask, B, A)
+    B[:] = np.where(mask, a, B)
+
+
+def one_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array, Array]:
+    """Swap the tails after a random cut point in 1..K-1."""
+    A, B = rows(ind1), rows(ind2)
+    N, K = A.shape
+    cut = rng.integers(1, K, size=(N, 1))
+    _swap(A, B, np.arange(K) >= cut)
+    return ind1, ind2
+
+
+def two_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array, Array]:
+    """Swap the genes between two distinct random cut points in 1..K-1."""
+    A, B = rows(ind1), rows(ind2)
+    N, K = A.shape
+    x = rng.integers(1, K, size=N)
+    y = rng.integers(1, K - 1, size=N)
+    y = y + (y >= x)
+    lo, hi = np.minimum(x, y)[:, None], np.maximum(x, y)[:, None]
+    pos = np.arange(K)
+    _swap(A, B, (pos >= lo) & (pos < hi))
+    return ind1, ind2
+
+
+def uniform(ind1: Array, ind2: Array, rng: np.random.Generator, indpb: float = 0.5) -> tuple[Array, Array]:
+    """Swap each gene with probability ``indpb``."""
+    A, B = rows(ind1), rows(ind2)
+    _swap(A, B, rng.random(A.shape) < indpb)
+    return ind1, ind2
+
+
+def blend(ind1: Array, ind2: Array, rng: np.random.Generator, alpha: float = 0.5) -> tuple[Array, Array]:
+    """BLX-alpha: ``gamma = (1 + 2 alpha) U - alpha``, children ``(1-gamma) x1 + gamma x2`` and
+    ``gamma x1 + (1-gamma) x2`` (as DEAP's ``cxBlend``)."""
+    A, B = rows(ind1), rows(ind2)
+    g = (1.0 + 2.0 * alpha) * rng.random(A.shape) - alpha
+    a = A.copy()
+    A[:] = (1.0 - g) * a + g * B
+    B[:] = g * a + (1.0 - g) * B
+    return ind1, ind2
+
+
+def sbx(
+    ind1: Array, ind2: Array, rng: np.random.Generator, low: Array, up: Array, eta: float = 20.0, indpb: float = 0.5
+) -> tuple[Array, Array]:
+    """Simulated binary crossover bounded to [low, up] (Deb and Agrawal; the algorithm of DEAP's
+    ``cxSimulatedBinaryBounded``), each gene with probability ``indpb``, vectorised."""
+    A, B = rows(ind1), rows(ind2)
+    x1, x2 = np.minimum(A, B), np.maximum(A, B)
+    active = (rng.random(A.shape) < indpb) & (x2 - x1 > 1e-14)
+    diff = np.where(active, x2 - x1, 1.0)
+    u = rng.random(A.shape)
+    power = 1.0 / (eta + 1.0)
+
+    def beta_q(beta: Array) -> Array:
+        alpha = 2.0 - beta ** -(eta + 1.0)
+        return np.where(u <= 1.0 / alpha, (u * alpha) ** power, (1.0 / (2.0 - u * alpha)) ** power)
+
+    with np.errstate(all="ignore"):
+        c1 = 0.5 * (x1 + x2 - beta_q(1.0 + 2.0 * (x1 - low) / diff) * diff)
+        c2 = 0.5 * (x1 + x2 + beta_q(1.0 + 2.0 * (up - x2) / diff) * diff)
+    c1, c2 = np.clip(c1, low, up), np.clip(c2, low, up)
+    flip = rng.random(A.shape) <= 0.5
+    A[:] = np.where(active, np.where(flip, c2, c1), A)
+    B[:] = np.where(active, np.where(flip, c1, c2), B)
+    return ind1, ind2

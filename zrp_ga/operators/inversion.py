@@ -1,0 +1,29 @@
+"""Inversion: reverse a random segment of the genome.
+
+Unlike DEAP's ``tools.mutInversion``, which never moves the last gene, the segment [i, j] is
+uniform over all pairs of loci i < j, so every locus can move. ``block`` keeps the segment
+inside one parameter block (axis genes among axis genes, body-vector genes among body-vector
+genes), so that a gene never lands in a slot of another unit or scale.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from zrp_ga.operators import Array, block_bounds, permute_rows, rows, segments
+
+
+def segment(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]] | None = None) -> tuple[Array]:
+    """Reverse genes i..j (inclusive) of each genome; within a random block if ``blocks`` is given."""
+    A = rows(ind)
+    N, K = A.shape
+    i, j = segments(rng, *block_bounds(rng, N, K, blocks))
+    pos = np.arange(K)[None]
+    inside = (pos >= i[:, None]) & (pos <= j[:, None])
+    permute_rows(A, np.where(inside, i[:, None] + j[:, None] - pos, pos))
+    return (ind,)
+
+
+def block(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]]) -> tuple[Array]:
+    """:func:`segment` inside one parameter block."""
+    return segment(ind, rng, blocks)

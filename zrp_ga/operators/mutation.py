@@ -1,0 +1,45 @@
+"""Mutation: Gaussian (sigma relative to the gene range), polynomial (bounded), uniform reset."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from zrp_ga.operators import Array, rows
+
+
+def gaussian(
+    ind: Array, rng: np.random.Generator, low: Array, up: Array, sigma: float = 0.1, indpb: float = 0.2
+) -> tuple[Array]:
+    """Add ``N(0, (sigma (up - low))^2)`` to each gene with probability ``indpb``."""
+    A = rows(ind)
+    mask = rng.random(A.shape) < indpb
+    A += mask * rng.normal(size=A.shape) * (sigma * (up - low))
+    return (ind,)
+
+
+def polynomial(
+    ind: Array, rng: np.random.Generator, low: Array, up: Array, eta: float = 20.0, indpb: float = 0.2
+) -> tuple[Array]:
+    """Deb's bounded polynomial mutation (the algorithm of DEAP's ``mutPolynomialBounded``)."""
+    A = rows(ind)
+    mask = rng.random(A.shape) < indpb
+    x = np.clip(A, low, up)
+    width = up - low
+    d1, d2 = (x - low) / width, (up - x) / width
+    u = rng.random(A.shape)
+    power = 1.0 / (eta + 1.0)
+    lower_side = u < 0.5
+    with np.errstate(all="ignore"):
+        v1 = 2.0 * u + (1.0 - 2.0 * u) * (1.0 - d1) ** (eta + 1.0)
+        v2 = 2.0 * (1.0 - u) + 2.0 * (u - 0.5) * (1.0 - d2) ** (eta + 1.0)
+        dq = np.where(lower_side, v1**power - 1.0, 1.0 - v2**power)
+    A[:] = np.where(mask, np.clip(x + dq * width, low, up), A)
+    return (ind,)
+
+
+def uniform_reset(ind: Array, rng: np.random.Generator, low: Array, up: Array, indpb: float = 0.1) -> tuple[Array]:
+    """Replace each gene with probability ``indpb`` by a uniform draw in [low, up]."""
+    A = rows(ind)
+    mask = rng.random(A.shape) < indpb
+    A[:] = np.where(mask, rng.uniform(low, up, size=A.shape), A)
+    return (ind,)
