@@ -1,7 +1,8 @@
 """Pose evaluations per second: batched forward kinematics plus pose cost, against plain loops.
 
 A population of 200 PUMA 560 parameter sets over 50 poses (10,000 pose evaluations per call),
-full-pose cost (orientation and position residuals). One core: the compiled kernel is serial
+full-pose cost (orientation and position residuals): the compiled kernel alone, and the GA's
+whole fitness function (genomes to parameters, axes normalised, unit-length rows, norm). One core: the compiled kernel is serial
 and BLAS is not involved. Run:
 
     python experiments/bench_kinematics.py [--population 200] [--poses 50] [--seconds 3]
@@ -16,6 +17,7 @@ import time
 import numpy as np
 
 from zrp_ga import kinematics, robots
+from zrp_ga.problem import CalibrationProblem, Layout, Measurements
 
 
 def rate(fn, evaluations: int, seconds: float) -> float:
@@ -58,6 +60,14 @@ def main() -> None:
     def batched():
         kinematics.residual_sums(u0, b0, robot.R_h0, q, p_meas, R_meas)
 
+    problem = CalibrationProblem(
+        robot, Measurements(q, p_meas, R_meas), Layout(6), -np.ones(36), np.ones(36), cost="nonlinear"
+    )
+    genomes = np.concatenate([(u0 - robot.u0).reshape(P, -1), (b0 - robot.b0)[:, 1:].reshape(P, -1)], axis=1)
+
+    def fitness():
+        problem.costs(genomes)
+
     def loop_individuals():
         for member in members:
             R, p = kinematics.forward(member, q)
@@ -72,6 +82,7 @@ def main() -> None:
     print(f"machine: {cpu_name()} ({platform.machine()}), python {platform.python_version()}")
     print(f"population {P} x {M} poses = {P * M} pose evaluations per call")
     print(f"batched forward + pose cost:            {rate(batched, P * M, args.seconds) / 1e6:8.2f} M pose evaluations/s")
+    print(f"the GA's fitness, CalibrationProblem.costs: {rate(fitness, P * M, args.seconds) / 1e6:8.2f} M pose evaluations/s")
     print(f"loop of forward(), one call per member: {rate(loop_individuals, P * M, args.seconds) / 1e6:8.3f} M pose evaluations/s")
     print(f"loop of forward(), one call per pose:   {rate(loop_poses, 20 * M, args.seconds) / 1e6:8.3f} M pose evaluations/s")
 

@@ -95,3 +95,24 @@ def test_command_line_error_is_one_line(tmp_path):
     assert proc.returncode == 2
     assert "zrp-ga: error: crossover.prob: probability 1.5 is outside [0, 1]" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("family", ["inversion", "rotation"])
+def test_configured_segment_operators_cross_blocks_and_block_ones_do_not(family):
+    cfg = _cfg(f"{family}=segment")
+    prob, _ = build.problem(cfg.problem, build.robot(cfg.robot), 0)
+    rng = np.random.default_rng(0)
+    alias = "invert" if family == "inversion" else "rotate"
+    for choice, crosses in (("segment", True), ("block", False)):
+        tb = build.toolbox(_cfg(f"{family}={choice}"), prob, rng)
+        G = np.hstack([np.zeros((500, 18)), np.ones((500, 18))])
+        getattr(tb, alias)(G)
+        assert bool(np.any(G[:, :18] == 1)) is crosses
+
+
+def test_the_optimiser_never_starts_from_the_truth(tmp_path):
+    app.run(_cfg("problem.n_validation=5", "population.generations=1"), tmp_path)
+    init = pd.read_csv(tmp_path / "initial_population.csv").drop(columns=["individual", "cost"]).to_numpy()
+    cfg = _cfg()
+    _, sim = build.problem(cfg.problem, build.robot(cfg.robot), 0)
+    assert np.min(np.abs(init[:, :, None] - sim.true_de[None, None, :])) > 1e-12  # no gene equals a true error

@@ -26,7 +26,7 @@ def run(cfg: DictConfig, out_dir: str | Path) -> dict:
     seed = int(cfg.seed)
     random.seed(seed)  # DEAP's own code draws from `random`
     np.random.seed(seed % 2**32)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng([seed, 0])  # the optimiser's stream; the problem draws from [seed, 1]
     name = cfg.algorithm.name
     if name not in ("ga", "lm", "cmaes"):
         raise build.ConfigError(f"algorithm.name: unknown algorithm {name!r}; known: ga, lm, cmaes")

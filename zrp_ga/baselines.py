@@ -28,7 +28,7 @@ def _row(gen: int, nevals: int, costs: np.ndarray, t_start: float, t_eval: float
     stats = (finite.min(), finite.mean(), np.median(finite), finite.std(), finite.max()) if finite.size else (np.nan,) * 5
     return dict(
         gen=gen, nevals=nevals, **dict(zip(("best", "mean", "median", "std", "worst"), stats)),
-        n_nonfinite=int(costs.size - finite.size), eval_s=t_eval, variation_s=0.0, refine_s=0.0,
+        n_nonfinite=int(costs.size - finite.size), eval_s=t_eval, bookkeeping_s=0.0, refine_s=0.0,
         wall_s=time.perf_counter() - t_start,
     )  # fmt: skip
 

@@ -44,7 +44,8 @@ def problem(cfg: DictConfig, arm: ZRPRobot, seed: int) -> tuple[CalibrationProbl
         if not cfg[key] >= 0:
             raise ConfigError(f"problem.{key}: must be >= 0, got {cfg[key]}")
     layout = Layout(arm.n, base=cfg.identify_base, hand=cfg.identify_hand)
-    rng = np.random.default_rng(seed if cfg.seed is None else cfg.seed)
+    # A stream of its own: with the optimiser's, the first genome would be the true errors.
+    rng = np.random.default_rng([seed if cfg.seed is None else cfg.seed, 1])
     sim = simulate(
         arm, layout, rng, n_poses=cfg.n_poses, n_validation=cfg.n_validation, axis_error=cfg.axis_error,
         body_error=cfg.body_error, joint_noise=cfg.joint_noise, position_noise=cfg.position_noise,

@@ -118,11 +118,16 @@ def build_toolbox(
     return toolbox
 
 
-def _stats(costs: Array) -> dict[str, float]:
-    finite = costs[np.isfinite(costs)]
-    if finite.size == 0:
+def _stats(sorted_costs: Array) -> dict[str, float]:
+    """Population statistics of costs sorted ascending (NaN and inf, last, left out)."""
+    finite = sorted_costs[: int(np.isfinite(sorted_costs).sum())]
+    n = finite.size
+    if n == 0:
         return dict(best=np.nan, mean=np.nan, median=np.nan, std=np.nan, worst=np.nan)
-    return dict(best=finite.min(), mean=finite.mean(), median=np.median(finite), std=finite.std(), worst=finite.max())
+    mean = finite.sum() / n
+    dev = finite - mean
+    median = finite[n // 2] if n % 2 else 0.5 * (finite[n // 2 - 1] + finite[n // 2])
+    return dict(best=finite[0], mean=mean, median=median, std=np.sqrt(dev @ dev / n), worst=finite[-1])
 
 
 def _rank(costs: Array) -> Array:
@@ -162,19 +167,27 @@ def evolve(
     initial_genes, initial_costs = pop.copy(), costs.copy()
     nevals = s.mu
     logbook = tools.Logbook()
-    hof = tools.HallOfFame(5, similar=np.array_equal)
+    hof = tools.HallOfFame(1, similar=np.array_equal)  # the best ever: lost by (mu, lambda) otherwise
     since_improved = 0
 
-    def record(gen: int, n_nonfinite: int, t_eval: float, t_var: float, t_refine: float) -> dict:
+    def record(gen: int, n_nonfinite: int, t_eval: float, t_book: float, t_refine: float) -> dict:
+        """Hall of fame and logbook (DEAP bookkeeping, timed with the rest of it), then the callback."""
+        t0 = time.perf_counter()
         order = _rank(costs)
+        # Only genomes that can enter the hall of fame become DEAP individuals.
+        bar = hof[-1].fitness.values[0] if len(hof) == hof.maxsize else np.inf
         top = []
-        for k in order[:5]:
-            ind = creator.ZRPIndividual(pop[k])
-            ind.fitness.values = (costs[k] if np.isfinite(costs[k]) else np.inf,)
+        for k in order[: hof.maxsize]:
+            if not costs[k] < bar:
+                break
+            ind = pop[k].copy().view(creator.ZRPIndividual)
+            ind.fitness = creator.ZRPFitness((costs[k],))
             top.append(ind)
-        hof.update(top)
-        row = dict(gen=gen, nevals=nevals, **_stats(costs), n_nonfinite=n_nonfinite)
-        row.update(eval_s=t_eval, variation_s=t_var, refine_s=t_refine, wall_s=time.perf_counter() - t_start)
+        if top:
+            hof.update(top)
+        row = dict(gen=gen, nevals=nevals, **_stats(costs[order]), n_nonfinite=n_nonfinite)
+        t_book += time.perf_counter() - t0
+        row.update(eval_s=t_eval, bookkeeping_s=t_book, refine_s=t_refine, wall_s=time.perf_counter() - t_start)
         logbook.record(**row)
         if on_generation is not None:
             on_generation(row, pop[order[0]], costs[order[0]])
@@ -206,7 +219,7 @@ def evolve(
                     off[who] = block
                     changed[who] = True
         toolbox.repair(off)
-        t_var = time.perf_counter() - t0
+        t_book = time.perf_counter() - t0
         t0 = time.perf_counter()
         n_refine = int(round(s.refine_share * lam))
         refined = rng.choice(lam, size=n_refine, replace=False) if n_refine else np.empty(0, dtype=int)
@@ -237,9 +250,9 @@ def evolve(
             genes, pool = np.vstack([pop, off]), np.concatenate([costs, off_costs])
             order = np.concatenate([_rank(costs)[: s.elite], len(costs) + _rank(off_costs)[: s.mu - s.elite]])
         pop, costs = genes[order], pool[order]
-        t_var += time.perf_counter() - t0
+        t_book += time.perf_counter() - t0
         n_bad = int(np.sum(~np.isfinite(off_costs[new])))
-        row = record(gen, n_bad, t_eval, t_var, t_refine)
+        row = record(gen, n_bad, t_eval, t_book, t_refine)
         if row["best"] < best_seen * (1.0 - 1e-12):
             best_seen, since_improved = row["best"], 0
         else:
@@ -252,5 +265,5 @@ def evolve(
             stop = "target_cost"
         elif s.stagnation and since_improved >= s.stagnation:
             stop = "stagnation"
-    best = _rank(costs)[0]
-    return RunResult(pop[best].copy(), float(costs[best]), initial_genes, initial_costs, nevals, stop, logbook, hof)
+    best = hof[0]  # the best ever seen, whatever the strategy kept
+    return RunResult(np.asarray(best).copy(), best.fitness.values[0], initial_genes, initial_costs, nevals, stop, logbook, hof)

@@ -13,7 +13,7 @@ import numpy as np
 from zrp_ga.operators import Array, block_bounds, permute_rows, rows, segments
 
 
-def segment(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]] | None = None) -> tuple[Array]:
+def _permute(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]] | None) -> tuple[Array]:
     """Reverse genes i..j (inclusive) of each genome; within a random block if ``blocks`` is given."""
     A = rows(ind)
     N, K = A.shape
@@ -25,5 +25,10 @@ def segment(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]] 
 
 
 def block(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]]) -> tuple[Array]:
-    """:func:`segment` inside one parameter block."""
-    return segment(ind, rng, blocks)
+    """:func:`segment` inside one parameter block (``blocks``: [start, stop) of each)."""
+    return _permute(ind, rng, blocks)
+
+
+def segment(ind: Array, rng: np.random.Generator) -> tuple[Array]:
+    """A random segment anywhere in the genome."""
+    return _permute(ind, rng, None)

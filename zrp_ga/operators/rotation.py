@@ -11,7 +11,7 @@ import numpy as np
 from zrp_ga.operators import Array, block_bounds, permute_rows, rows, segments
 
 
-def segment(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]] | None = None) -> tuple[Array]:
+def _permute(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]] | None) -> tuple[Array]:
     """Rotate genes i..j (inclusive) of each genome by a random shift; within a block if given."""
     A = rows(ind)
     N, K = A.shape
@@ -26,5 +26,10 @@ def segment(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]] 
 
 
 def block(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]]) -> tuple[Array]:
-    """:func:`segment` inside one parameter block."""
-    return segment(ind, rng, blocks)
+    """:func:`segment` inside one parameter block (``blocks``: [start, stop) of each)."""
+    return _permute(ind, rng, blocks)
+
+
+def segment(ind: Array, rng: np.random.Generator) -> tuple[Array]:
+    """A random segment anywhere in the genome."""
+    return _permute(ind, rng, None)
