@@ -21,15 +21,16 @@ from zrp_ga.problem import CalibrationProblem, Layout, Measurements
 
 
 def rate(fn, evaluations: int, seconds: float) -> float:
-    """Pose evaluations per second of ``fn`` (best of repeated timing loops after a warm-up)."""
+    """Pose evaluations per second of ``fn``: the median of timed calls for ``seconds`` after a
+    warm-up (the median, not the best: single calls on this machine vary by a factor 1.5)."""
     fn()
-    best = np.inf
+    times = []
     end = time.perf_counter() + seconds
     while time.perf_counter() < end:
         t0 = time.perf_counter()
         fn()
-        best = min(best, time.perf_counter() - t0)
-    return evaluations / best
+        times.append(time.perf_counter() - t0)
+    return evaluations / float(np.median(times))
 
 
 def cpu_name() -> str:

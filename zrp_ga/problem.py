@@ -163,6 +163,7 @@ class CalibrationProblem:
         self._row_weights = np.ones(self.n_rows)
         if not data.position_only:
             self._row_weights[: 6 * data.M] = np.tile([self.orientation_weight] * 3 + [1.0] * 3, data.M)
+        self._terms = kinematics.joint_terms(data.q, self.nominal.prismatic)
         self.J_nominal = self._jacobian_at(np.zeros(K))
         self.y_nominal = self._residual_one(np.zeros(K))  # [dr; dp; 0] of the nominal robot
 
@@ -227,16 +228,34 @@ class CalibrationProblem:
             r = self.y_nominal[None] - de @ self.J_nominal.T
             total = np.einsum("pr,pr->p", r, r)
         else:
-            u0, b0, R_h0 = self.layout.unpack(self.nominal, de)
-            data = self.calibration
             with np.errstate(all="ignore"):
-                sums = kinematics.residual_sums(_unit(u0), b0, R_h0, data.q, data.p, data.R, self.nominal.prismatic)
-                unit = 0.5 * (np.sum(u0**2, axis=2) - 1.0)
-                total = self.orientation_weight**2 * sums[:, 0] + sums[:, 1] + np.sum(unit**2, axis=1)
+                U, B, H, length2 = self._kernel_layout(de)
+                data = self.calibration
+                sums = kinematics.residual_sums_unchecked(U, B, H, self._terms, data.p, data.R)
+                unit = 0.5 * (length2 - 1.0)
+                total = self.orientation_weight**2 * sums[0] + sums[1] + np.einsum("ip,ip->p", unit, unit)
         with np.errstate(all="ignore"):
             if self.norm == "rms":
                 total = total / self.n_rows
             return np.sqrt(total)
+
+    def _kernel_layout(self, de: Array) -> tuple[Array, Array, Array, Array]:
+        """Genomes (P, K) straight into the compiled kernel's layout, population last:
+        unit axes U (n, 3, P), B (n+1, 3, P), H (3, 3, P), and |u0 + du0|^2 (n, P)."""
+        P, n, blocks = de.shape[0], self.nominal.n, self.layout.blocks
+        D = np.ascontiguousarray(de.T)  # the kernel needs C order: its loops vectorise over P
+        U = self.nominal.u0[:, :, None] + D[blocks["u0"]].reshape(n, 3, P)
+        length2 = np.einsum("ikp,ikp->ip", U, U)
+        U /= np.sqrt(length2)[:, None, :]
+        B = np.repeat(self.nominal.b0[:, :, None], P, axis=2)
+        B[1:] += D[blocks["b0"]].reshape(n, 3, P)
+        if self.layout.base:
+            B[0] += D[blocks["base"]]
+        if self.layout.hand:
+            H = (Rotation.from_rotvec(de[:, blocks["hand"]]).as_matrix() @ self.nominal.R_h0).transpose(1, 2, 0)
+        else:
+            H = np.broadcast_to(self.nominal.R_h0[:, :, None], (3, 3, P))
+        return U, B, np.ascontiguousarray(H), length2
 
     def refine(self, de: ArrayLike) -> Array:
         """The pseudo-inverse step (the paper's step 8): ``de + pinv(J) r``, with J and r at ``de``.
