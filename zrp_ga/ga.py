@@ -169,11 +169,14 @@ def evolve(
     logbook = tools.Logbook()
     hof = tools.HallOfFame(1, similar=np.array_equal)  # the best ever: lost by (mu, lambda) otherwise
     since_improved = 0
+    unary = [getattr(toolbox, alias, None) for alias in ("mutate", "invert", "rotate")]
+    probs = np.array([s.p_mut, s.p_inv, s.p_rot]) * [op is not None for op in unary]
 
-    def record(gen: int, n_nonfinite: int, t_eval: float, t_book: float, t_refine: float) -> dict:
-        """Hall of fame and logbook (DEAP bookkeeping, timed with the rest of it), then the callback."""
+    def record(gen: int, n_nonfinite: int, t_eval: float, t_book: float, t_refine: float, ranked=False) -> dict:
+        """Hall of fame and logbook (DEAP bookkeeping, timed with the rest of it), then the callback.
+        ``ranked``: the population is already sorted best first (survival by truncation)."""
         t0 = time.perf_counter()
-        order = _rank(costs)
+        order = np.arange(len(costs)) if ranked else _rank(costs)
         # Only genomes that can enter the hall of fame become DEAP individuals.
         bar = hof[-1].fitness.values[0] if len(hof) == hof.maxsize else np.inf
         top = []
@@ -200,24 +203,21 @@ def evolve(
         lam = s.lambda_ if s.max_evals is None else max(1, min(s.lambda_, s.max_evals - nevals))
         t0 = time.perf_counter()
         parents = toolbox.select(costs, lam)
-        off = pop[parents].copy()
-        off_costs = costs[parents].copy()
+        off, off_costs = pop[parents], costs[parents]  # fancy indexing copies: the clones
         changed = np.zeros(lam, dtype=bool)
         if hasattr(toolbox, "mate") and s.p_cx > 0:
-            pairs = np.flatnonzero(rng.random(lam // 2) < s.p_cx)
-            if pairs.size:
-                a, b = off[2 * pairs], off[2 * pairs + 1]
-                toolbox.mate(a, b)
-                off[2 * pairs], off[2 * pairs + 1] = a, b
-                changed[2 * pairs] = changed[2 * pairs + 1] = True
-        for alias, p in (("mutate", s.p_mut), ("invert", s.p_inv), ("rotate", s.p_rot)):
-            if hasattr(toolbox, alias) and p > 0:
-                who = np.flatnonzero(rng.random(lam) < p)
-                if who.size:
-                    block = off[who]
-                    getattr(toolbox, alias)(block)
-                    off[who] = block
-                    changed[who] = True
+            # Parents come in random order, so the first n_cx pairs cross: strided views, no copies.
+            n_cx = 2 * rng.binomial(lam // 2, s.p_cx)
+            if n_cx:
+                toolbox.mate(off[0:n_cx:2], off[1:n_cx:2])
+                changed[:n_cx] = True
+        chosen = rng.random((3, lam)) < probs[:, None]  # who mutates, inverts, rotates
+        for op, mask in zip(unary, chosen):
+            if op is not None and mask.any():
+                block = off[mask]
+                op(block)
+                off[mask] = block
+                changed |= mask
         toolbox.repair(off)
         t_book = time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -235,8 +235,8 @@ def evolve(
         t_refine = time.perf_counter() - t0
         t0 = time.perf_counter()
         new = np.flatnonzero(changed)  # unchanged clones keep their parent's cost
-        if new.size:
-            off_costs[new] = toolbox.evaluate(off[new])
+        values = toolbox.evaluate(off[new]) if new.size else np.empty(0)
+        off_costs[new] = values
         t_eval = time.perf_counter() - t0
         nevals += new.size + refined.size  # a pseudo-inverse step evaluates its residual once
         t0 = time.perf_counter()
@@ -251,8 +251,8 @@ def evolve(
             order = np.concatenate([_rank(costs)[: s.elite], len(costs) + _rank(off_costs)[: s.mu - s.elite]])
         pop, costs = genes[order], pool[order]
         t_book += time.perf_counter() - t0
-        n_bad = int(np.sum(~np.isfinite(off_costs[new])))
-        row = record(gen, n_bad, t_eval, t_book, t_refine)
+        n_bad = values.size - int(np.isfinite(values).sum())
+        row = record(gen, n_bad, t_eval, t_book, t_refine, ranked=s.strategy != "generational")
         if row["best"] < best_seen * (1.0 - 1e-12):
             best_seen, since_improved = row["best"], 0
         else:

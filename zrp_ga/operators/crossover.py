@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.operators import Array, rows
+from zrp_ga.operators import Array, rows, segments, swap_segments
 
 
 def _swap(A: Array, B: Array, mask: np.ndarray) -> None:
@@ -17,8 +17,8 @@ def one_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array
     """Swap the tails after a random cut point in 1..K-1."""
     A, B = rows(ind1), rows(ind2)
     N, K = A.shape
-    cut = rng.integers(1, K, size=(N, 1))
-    _swap(A, B, np.arange(K) >= cut)
+    cut = rng.integers(1, K, size=N)
+    swap_segments(A, B, cut, np.full(N, K))
     return ind1, ind2
 
 
@@ -26,12 +26,8 @@ def two_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array
     """Swap the genes between two distinct random cut points in 1..K-1."""
     A, B = rows(ind1), rows(ind2)
     N, K = A.shape
-    x = rng.integers(1, K, size=N)
-    y = rng.integers(1, K - 1, size=N)
-    y = y + (y >= x)
-    lo, hi = np.minimum(x, y)[:, None], np.maximum(x, y)[:, None]
-    pos = np.arange(K)
-    _swap(A, B, (pos >= lo) & (pos < hi))
+    lo, hi = segments(rng, 1, K, N)  # two distinct cut points in 1..K-1
+    swap_segments(A, B, lo, hi)
     return ind1, ind2
 
 

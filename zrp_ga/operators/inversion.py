@@ -10,17 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.operators import Array, block_bounds, permute_rows, rows, segments
+from zrp_ga.operators import Array, block_bounds, reverse_segments, rows, segments
 
 
 def _permute(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]] | None) -> tuple[Array]:
     """Reverse genes i..j (inclusive) of each genome; within a random block if ``blocks`` is given."""
     A = rows(ind)
     N, K = A.shape
-    i, j = segments(rng, *block_bounds(rng, N, K, blocks))
-    pos = np.arange(K)[None]
-    inside = (pos >= i[:, None]) & (pos <= j[:, None])
-    permute_rows(A, np.where(inside, i[:, None] + j[:, None] - pos, pos))
+    lo, hi = block_bounds(rng, N, blocks) if blocks else (0, K)
+    reverse_segments(A, *segments(rng, lo, hi, N))
     return (ind,)
 
 

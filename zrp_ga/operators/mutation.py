@@ -12,8 +12,8 @@ def gaussian(
 ) -> tuple[Array]:
     """Add ``N(0, (sigma (up - low))^2)`` to each gene with probability ``indpb``."""
     A = rows(ind)
-    mask = rng.random(A.shape) < indpb
-    A += mask * rng.normal(size=A.shape) * (sigma * (up - low))
+    r, c = np.nonzero(rng.random(A.shape) < indpb)
+    A[r, c] += rng.standard_normal(r.size) * (sigma * (up - low))[c]
     return (ind,)
 
 

@@ -8,20 +8,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.operators import Array, block_bounds, permute_rows, rows, segments
+from zrp_ga.operators import Array, block_bounds, rotate_segments, rows, segments
 
 
 def _permute(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]] | None) -> tuple[Array]:
     """Rotate genes i..j (inclusive) of each genome by a random shift; within a block if given."""
     A = rows(ind)
     N, K = A.shape
-    i, j = segments(rng, *block_bounds(rng, N, K, blocks))
-    length = j - i + 1
-    shift = rng.integers(1, length)
-    pos = np.arange(K)[None]
-    inside = (pos >= i[:, None]) & (pos <= j[:, None])
-    src = i[:, None] + (pos - i[:, None] - shift[:, None]) % length[:, None]
-    permute_rows(A, np.where(inside, src, pos))
+    lo, hi = block_bounds(rng, N, blocks) if blocks else (0, K)
+    i, j = segments(rng, lo, hi, N)
+    shift = 1 + (rng.random(N) * (j - i)).astype(np.intp)  # 1 .. length - 1
+    rotate_segments(A, i, j, shift)
     return (ind,)
 
 
