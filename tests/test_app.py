@@ -5,16 +5,14 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
-from hydra import compose, initialize_config_module
 from hydra.errors import ConfigCompositionException, MissingConfigException
 
-from zrp_ga import app, build
+from zrp_ga import app, build, config
 from zrp_ga.records import CONVERGENCE_COLUMNS, WALL_CLOCK_COLUMNS
 
 
 def _cfg(*overrides):
-    with initialize_config_module("zrp_ga.conf", version_base="1.3"):
-        return compose("config", overrides=list(overrides))
+    return config.load(overrides)
 
 
 def test_default_run_writes_every_file(tmp_path):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import random
 import time
 from collections.abc import Callable
 
@@ -141,6 +142,9 @@ def evolve(
     settings: GASettings,
     rng: np.random.Generator,
     on_generation: Callable[[dict, Array, float], None] | None = None,
+    checkpoint: Callable[[dict], None] | None = None,
+    checkpoint_every: int = 0,
+    state: dict | None = None,
 ) -> RunResult:
     """Run the GA; ``on_generation(row, best_genome, best_cost)`` is called after every generation.
 
@@ -158,21 +162,33 @@ def evolve(
                    best mu of offspring             (mu_comma_lambda)
                    elite best of pop + best of offspring (generational)
         until generations, evaluations, target cost or stagnation
+
+    Checkpoints follow DEAP's recipe (population, hall of fame, logbook, both random states):
+    ``checkpoint(state)`` receives the state after every ``checkpoint_every``-th generation,
+    after the last one, and on KeyboardInterrupt after the last finished one (then re-raises).
+    ``evolve(..., state=state)`` with the same ``rng`` object continues exactly as if never stopped.
     """
     s = settings
     K = problem.layout.size
     t_start = time.perf_counter()
-    pop = rng.uniform(problem.lower, problem.upper, size=(s.mu, K))
-    costs = toolbox.evaluate(pop)
-    initial_genes, initial_costs = pop.copy(), costs.copy()
-    nevals = s.mu
-    logbook = tools.Logbook()
-    hof = tools.HallOfFame(1, similar=np.array_equal)  # the best ever: lost by (mu, lambda) otherwise
-    since_improved = 0
+    if state is None:
+        pop = rng.uniform(problem.lower, problem.upper, size=(s.mu, K))
+        costs = toolbox.evaluate(pop)
+        initial_genes, initial_costs = pop.copy(), costs.copy()
+        nevals, gen, since_improved = s.mu, 0, 0
+        logbook = tools.Logbook()
+        hof = tools.HallOfFame(1, similar=np.array_equal)  # the best ever: lost by (mu, lambda) otherwise
+    else:
+        pop, costs, nevals, gen = state["pop"], state["costs"], state["nevals"], state["gen"]
+        initial_genes, initial_costs = state["initial_genes"], state["initial_costs"]
+        logbook, hof, since_improved = state["logbook"], state["hall_of_fame"], state["since_improved"]
+        rng.bit_generator.state = state["rng"]
+        random.setstate(state["random"])
+        t_start -= state["wall_s"]
     unary = [getattr(toolbox, alias, None) for alias in ("mutate", "invert", "rotate")]
     probs = np.array([s.p_mut, s.p_inv, s.p_rot]) * [op is not None for op in unary]
 
-    def record(gen: int, n_nonfinite: int, t_eval: float, t_book: float, t_refine: float, ranked=False) -> dict:
+    def record(n_nonfinite: int, t_eval: float, t_book: float, t_refine: float, ranked=False) -> dict:
         """Hall of fame and logbook (DEAP bookkeeping, timed with the rest of it), then the callback.
         ``ranked``: the population is already sorted best first (survival by truncation)."""
         t0 = time.perf_counter()
@@ -196,74 +212,99 @@ def evolve(
             on_generation(row, pop[order[0]], costs[order[0]])
         return row
 
-    best_seen = record(0, int(np.sum(~np.isfinite(costs))), 0.0, 0.0, 0.0)["best"]
-    gen, stop = 0, ""
-    while not stop:
-        gen += 1
-        lam = s.lambda_ if s.max_evals is None else max(1, min(s.lambda_, s.max_evals - nevals))
-        t0 = time.perf_counter()
-        parents = toolbox.select(costs, lam)
-        off, off_costs = pop[parents], costs[parents]  # fancy indexing copies: the clones
-        changed = np.zeros(lam, dtype=bool)
-        if hasattr(toolbox, "mate") and s.p_cx > 0:
-            # Parents come in random order, so the first n_cx pairs cross: strided views, no copies.
-            n_cx = 2 * rng.binomial(lam // 2, s.p_cx)
-            if n_cx:
-                toolbox.mate(off[0:n_cx:2], off[1:n_cx:2])
-                changed[:n_cx] = True
-        chosen = rng.random((3, lam)) < probs[:, None]  # who mutates, inverts, rotates
-        for op, mask in zip(unary, chosen):
-            if op is not None and mask.any():
-                block = off[mask]
-                op(block)
-                off[mask] = block
-                changed |= mask
-        toolbox.repair(off)
-        t_book = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        n_refine = int(round(s.refine_share * lam))
-        refined = rng.choice(lam, size=n_refine, replace=False) if n_refine else np.empty(0, dtype=int)
-        with np.errstate(all="ignore"):
-            for k in refined:
-                try:
-                    off[k] = toolbox.refine(off[k])
-                except np.linalg.LinAlgError:  # a degenerate genome: leave it to selection
-                    continue
-        if refined.size:
+    def snapshot() -> dict:
+        return dict(
+            pop=pop, costs=costs, nevals=nevals, gen=gen, initial_genes=initial_genes, initial_costs=initial_costs,
+            logbook=logbook, hall_of_fame=hof, since_improved=since_improved, best_seen=best_seen,
+            rng=rng.bit_generator.state, random=random.getstate(), wall_s=time.perf_counter() - t_start,
+        )  # fmt: skip
+
+    if state is None:
+        best_seen = record(int(np.sum(~np.isfinite(costs))), 0.0, 0.0, 0.0)["best"]
+    else:
+        best_seen = state["best_seen"]
+    last = snapshot()
+    stop = _stop_reason(s, gen, nevals, best_seen, since_improved)
+    try:
+        while not stop:
+            gen += 1
+            lam = s.lambda_ if s.max_evals is None else max(1, min(s.lambda_, s.max_evals - nevals))
+            t0 = time.perf_counter()
+            parents = toolbox.select(costs, lam)
+            off, off_costs = pop[parents], costs[parents]  # fancy indexing copies: the clones
+            changed = np.zeros(lam, dtype=bool)
+            if hasattr(toolbox, "mate") and s.p_cx > 0:
+                # Parents come in random order, so the first n_cx pairs cross: strided views, no copies.
+                n_cx = 2 * rng.binomial(lam // 2, s.p_cx)
+                if n_cx:
+                    toolbox.mate(off[0:n_cx:2], off[1:n_cx:2])
+                    changed[:n_cx] = True
+            chosen = rng.random((3, lam)) < probs[:, None]  # who mutates, inverts, rotates
+            for op, mask in zip(unary, chosen):
+                if op is not None and mask.any():
+                    block = off[mask]
+                    op(block)
+                    off[mask] = block
+                    changed |= mask
             toolbox.repair(off)
-            changed[refined] = True
-        t_refine = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        new = np.flatnonzero(changed)  # unchanged clones keep their parent's cost
-        values = toolbox.evaluate(off[new]) if new.size else np.empty(0)
-        off_costs[new] = values
-        t_eval = time.perf_counter() - t0
-        nevals += new.size + refined.size  # a pseudo-inverse step evaluates its residual once
-        t0 = time.perf_counter()
-        if s.strategy == "mu_plus_lambda" or lam < s.mu:
-            genes, pool = np.vstack([pop, off]), np.concatenate([costs, off_costs])
-            order = _rank(pool)[: s.mu]
-        elif s.strategy == "mu_comma_lambda":
-            genes, pool = off, off_costs
-            order = _rank(pool)[: s.mu]
-        else:  # generational with elitism
-            genes, pool = np.vstack([pop, off]), np.concatenate([costs, off_costs])
-            order = np.concatenate([_rank(costs)[: s.elite], len(costs) + _rank(off_costs)[: s.mu - s.elite]])
-        pop, costs = genes[order], pool[order]
-        t_book += time.perf_counter() - t0
-        n_bad = values.size - int(np.isfinite(values).sum())
-        row = record(gen, n_bad, t_eval, t_book, t_refine, ranked=s.strategy != "generational")
-        if row["best"] < best_seen * (1.0 - 1e-12):
-            best_seen, since_improved = row["best"], 0
-        else:
-            since_improved += 1
-        if s.generations is not None and gen >= s.generations:
-            stop = "generations"
-        elif s.max_evals is not None and nevals >= s.max_evals:
-            stop = "max_evals"
-        elif s.target_cost is not None and row["best"] <= s.target_cost:
-            stop = "target_cost"
-        elif s.stagnation and since_improved >= s.stagnation:
-            stop = "stagnation"
+            t_book = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            n_refine = int(round(s.refine_share * lam))
+            refined = rng.choice(lam, size=n_refine, replace=False) if n_refine else np.empty(0, dtype=int)
+            with np.errstate(all="ignore"):
+                for k in refined:
+                    try:
+                        off[k] = toolbox.refine(off[k])
+                    except np.linalg.LinAlgError:  # a degenerate genome: leave it to selection
+                        continue
+            if refined.size:
+                toolbox.repair(off)
+                changed[refined] = True
+            t_refine = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            new = np.flatnonzero(changed)  # unchanged clones keep their parent's cost
+            values = toolbox.evaluate(off[new]) if new.size else np.empty(0)
+            off_costs[new] = values
+            t_eval = time.perf_counter() - t0
+            nevals += new.size + refined.size  # a pseudo-inverse step evaluates its residual once
+            t0 = time.perf_counter()
+            if s.strategy == "mu_plus_lambda" or lam < s.mu:
+                genes, pool = np.vstack([pop, off]), np.concatenate([costs, off_costs])
+                order = _rank(pool)[: s.mu]
+            elif s.strategy == "mu_comma_lambda":
+                genes, pool = off, off_costs
+                order = _rank(pool)[: s.mu]
+            else:  # generational with elitism
+                genes, pool = np.vstack([pop, off]), np.concatenate([costs, off_costs])
+                order = np.concatenate([_rank(costs)[: s.elite], len(costs) + _rank(off_costs)[: s.mu - s.elite]])
+            pop, costs = genes[order], pool[order]
+            t_book += time.perf_counter() - t0
+            n_bad = values.size - int(np.isfinite(values).sum())
+            row = record(n_bad, t_eval, t_book, t_refine, ranked=s.strategy != "generational")
+            if row["best"] < best_seen * (1.0 - 1e-12):
+                best_seen, since_improved = row["best"], 0
+            else:
+                since_improved += 1
+            stop = _stop_reason(s, gen, nevals, best_seen, since_improved)
+            last = snapshot()
+            if checkpoint is not None and (stop or (checkpoint_every and gen % checkpoint_every == 0)):
+                checkpoint(last)
+    except KeyboardInterrupt:
+        if checkpoint is not None:
+            checkpoint(last)
+        raise
     best = hof[0]  # the best ever seen, whatever the strategy kept
     return RunResult(np.asarray(best).copy(), best.fitness.values[0], initial_genes, initial_costs, nevals, stop, logbook, hof)
+
+
+def _stop_reason(s: GASettings, gen: int, nevals: int, best: float, since_improved: int) -> str:
+    """Why the run stops after generation ``gen``, or "" to go on."""
+    if s.generations is not None and gen >= s.generations:
+        return "generations"
+    if s.max_evals is not None and nevals >= s.max_evals:
+        return "max_evals"
+    if s.target_cost is not None and best <= s.target_cost:
+        return "target_cost"
+    if s.stagnation and since_improved >= s.stagnation:
+        return "stagnation"
+    return ""

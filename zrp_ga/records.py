@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from deap import tools
 
 from zrp_ga.problem import CalibrationProblem
 
@@ -32,12 +33,27 @@ class ConvergenceLog:
     """``convergence.csv``, one row per generation, flushed at once so that an interrupted run
     keeps every finished generation."""
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, keep_until_gen: int | None = None):
+        """A new file; or, resuming, the existing one cut after generation ``keep_until_gen``
+        (rows a killed run wrote past its last checkpoint are written again by the resumed run)."""
         self.path = Path(path)
+        kept = []
+        if keep_until_gen is not None and self.path.exists():
+            with open(self.path, newline="") as f:
+                kept = [row for row in csv.DictReader(f) if int(row["gen"]) <= keep_until_gen]
         self._file = open(self.path, "w", newline="")
         self._writer = csv.DictWriter(self._file, fieldnames=CONVERGENCE_COLUMNS, extrasaction="ignore")
         self._writer.writeheader()
+        self._writer.writerows(kept)
         self._file.flush()
+        self._kept = kept
+
+    def logbook(self) -> tools.Logbook:
+        """A DEAP logbook of the rows kept from a resumed run (numbers as numbers)."""
+        book = tools.Logbook()
+        for row in self._kept:
+            book.record(**{k: _number(v) for k, v in row.items()})
+        return book
 
     def write(self, row: dict) -> None:
         self._writer.writerow({k: _plain(v) for k, v in row.items()})
@@ -51,6 +67,14 @@ class ConvergenceLog:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _number(text: str):
+    try:
+        value = float(text)
+    except ValueError:
+        return text
+    return int(value) if value.is_integer() and "." not in text and "e" not in text.lower() else value
 
 
 def _plain(v):

@@ -1,0 +1,179 @@
+"""Config groups, sweeps and their manifest, checkpoints and resume, one-line config errors."""
+
+import io
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from zrp_ga import app, build, config, records
+from zrp_ga.callbacks import read_manifest
+from zrp_ga.records import WALL_CLOCK_COLUMNS
+
+CONF = Path(app.__file__).resolve().parent.parent / "conf"
+if not (CONF / "config.yaml").exists():  # installed, not editable: the configs ship in the package
+    CONF = Path(app.__file__).resolve().parent / "conf"
+GROUPS = ["robot", "problem", "algorithm", "population", "selection", "crossover", "mutation", "inversion",
+          "rotation", "refine", "experiment"]
+
+
+def _options(group):
+    import importlib.resources
+
+    files = importlib.resources.files(f"zrp_ga.conf.{group}".replace("/", "."))
+    return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".yaml"))
+
+
+@pytest.mark.parametrize("group", GROUPS)
+def test_every_option_of_every_group_composes_and_builds(group, tmp_path):
+    options = _options(group)
+    assert options, group
+    for option in options:
+        over = [f"{group}={option}"]
+        if option == "file":
+            path = tmp_path / "arm.yaml"
+            build.robots.get("ur10").to_yaml(path)
+            over.append(f"robot.file={path}")
+        cfg = config.load(over)
+        arm = build.robot(cfg.robot)
+        prob, _ = build.problem(cfg.problem, arm, 0)
+        settings = build.settings(cfg)
+        toolbox = build.toolbox(cfg, prob, np.random.default_rng(0))
+        assert settings.mu >= 1 and hasattr(toolbox, "select") and prob.layout.size == 6 * arm.n
+
+
+@pytest.mark.parametrize("preset", ["local"])
+def test_launcher_presets_compose(preset):
+    pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
+    cfg = config.load([f"hydra/launcher={preset}"], return_hydra_config=True)
+    assert "Joblib" in cfg.hydra.launcher._target_
+
+
+@pytest.mark.parametrize(
+    "override, key",
+    [("problem.n_pose=30", "problem.n_pose"), ("population.mu=abc", "population.mu"), ("seed=1.5", "seed")],
+)
+def test_schema_refuses_wrong_keys_and_types_at_composition(override, key):
+    with pytest.raises(Exception) as info:
+        config.load([override])
+    assert f"(key: {key})" in app.one_line(info.value)
+
+
+def _zrp_ga(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "zrp_ga.app", *args], capture_output=True, text=True, **kw)
+
+
+@pytest.mark.parametrize(
+    "override, expected",
+    [
+        ("crossover=teleport", "Could not find 'crossover/teleport'; available options in 'crossover': blend, none"),
+        ("crossover.prob=1.5", "crossover.prob: probability 1.5 is outside [0, 1]"),
+        ("population.mu=0", "population.mu: must be at least 1, got 0"),
+        ("problem.n_pose=30", "Key 'n_pose' not in 'ProblemConf' (key: problem.n_pose)"),
+    ],
+)
+def test_bad_config_is_one_line_naming_the_key(tmp_path, override, expected):
+    proc = _zrp_ga(override, f"hydra.run.dir={tmp_path / 'run'}")
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [f"zrp-ga: error: {expected}"] or (
+        expected in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+    )
+    assert not (tmp_path / "run" / "convergence.csv").exists()
+
+
+def test_a_run_never_overwrites_another(tmp_path):
+    cfg = config.load(["problem.n_validation=5", "population.generations=2"])
+    app.run(cfg, tmp_path)
+    before = (tmp_path / "convergence.csv").read_text()
+    with pytest.raises(build.ConfigError, match="already holds a run"):
+        app.run(cfg, tmp_path)
+    assert (tmp_path / "convergence.csv").read_text() == before
+
+
+FAST = ["problem=multipose", "problem.n_poses=10", "problem.n_validation=10", "refine=none", "population.mu=30",
+        "population.lambda_=30", "seed=4"]
+
+
+def _csv(path):
+    return pd.read_csv(path / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS)
+
+
+def test_interrupted_run_resumes_to_the_same_csv(tmp_path, monkeypatch):
+    cfg = config.load(FAST + ["population.generations=40", "checkpoint_every=7"])
+    app.run(cfg, tmp_path / "whole")
+    write = records.ConvergenceLog.write
+
+    def ctrl_c_after_gen_23(self, row):
+        write(self, row)
+        if row["gen"] == 23:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(records.ConvergenceLog, "write", ctrl_c_after_gen_23)
+    with pytest.raises(KeyboardInterrupt):
+        app.run(cfg, tmp_path / "cut")
+    monkeypatch.setattr(records.ConvergenceLog, "write", write)
+    assert _csv(tmp_path / "cut")["gen"].max() == 23  # complete up to the last finished generation
+    summary = app.run(config.load([f"resume={tmp_path / 'cut'}"]), tmp_path / "ignored")
+    pd.testing.assert_frame_equal(_csv(tmp_path / "cut"), _csv(tmp_path / "whole"))
+    assert summary["final_cost"] == pd.read_csv(tmp_path / "whole" / "convergence.csv")["best"].iloc[-1]
+    assert not (tmp_path / "ignored").exists()
+
+
+def test_killed_process_resumes_to_the_same_csv(tmp_path):
+    args = FAST + ["population.generations=1500", "checkpoint_every=25", "progress=false"]
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *args, f"hydra.run.dir={tmp_path / 'cut'}"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    csv = tmp_path / "cut" / "convergence.csv"
+    deadline = time.time() + 60
+    while time.time() < deadline and not (csv.exists() and csv.read_text().count("\n") > 60):
+        time.sleep(0.005)
+    os.kill(proc.pid, signal.SIGKILL)  # no chance to save anything: the last periodic checkpoint counts
+    proc.wait()
+    assert len(pd.read_csv(csv)) < 1501, "the run finished before it could be killed"
+    done = _zrp_ga(f"resume={tmp_path / 'cut'}", f"hydra.run.dir={tmp_path / 'resume_log'}", "progress=false")
+    assert done.returncode == 0, done.stderr
+    whole = _zrp_ga(*args, f"hydra.run.dir={tmp_path / 'whole'}")
+    assert whole.returncode == 0, whole.stderr
+    pd.testing.assert_frame_equal(_csv(tmp_path / "cut"), _csv(tmp_path / "whole"))
+
+
+def test_sweep_with_a_failing_job_keeps_the_others_and_names_the_failure(tmp_path):
+    sweep = tmp_path / "sweep"
+    proc = _zrp_ga("-m", "problem.n_poses=4,0,6", "problem.n_validation=5", "population.generations=3",
+                   f"hydra.sweep.dir={sweep}")
+    assert proc.returncode != 0  # Hydra reports that not all jobs succeeded
+    manifest = read_manifest(sweep)
+    assert list(manifest["status"]) == ["done", "failed", "done"]
+    assert "problem.n_poses: must be at least 1" in manifest.loc[1, "error"]
+    assert manifest.loc[1, "overrides"] == "problem.n_poses=0 problem.n_validation=5 population.generations=3"
+    for job in (0, 2):
+        run_dir = sweep / manifest.loc[job, "dir"]
+        assert len(pd.read_csv(run_dir / "convergence.csv")) == 4
+        assert (run_dir / "summary.json").exists() and (run_dir / "best_params.csv").exists()
+    assert (sweep / "manifest.csv").exists()
+
+
+def test_joblib_sweep_runs_jobs_in_parallel_processes(tmp_path):
+    pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
+    sweep = tmp_path / "sweep"
+    proc = _zrp_ga("-m", "seed=0,1,2,3", "problem.n_validation=5", "population.generations=3",
+                   "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={sweep}")
+    assert proc.returncode == 0, proc.stderr
+    manifest = read_manifest(sweep)
+    assert list(manifest["status"]) == ["done"] * 4
+    assert "job 3 [seed=3" in proc.stdout + proc.stderr  # one compact line per job
+
+
+def test_progress_line_shows_generation_evaluations_best_and_time_left():
+    out = io.StringIO()
+    p = app.Progress(generations=100, max_evals=None, stream=out)
+    p({"gen": 25, "nevals": 520, "best": 0.0123, "val_rms": 1.5, "wall_s": 2.0})
+    line = out.getvalue()
+    assert "gen    25" in line and "evals      520" in line and "best 0.0123" in line
+    assert "time left    6.0 s" in line  # a quarter done in 2 s: 6 s to go
