@@ -177,3 +177,20 @@ def test_progress_line_shows_generation_evaluations_best_and_time_left():
     line = out.getvalue()
     assert "gen    25" in line and "evals      520" in line and "best 0.0123" in line
     assert "time left    6.0 s" in line  # a quarter done in 2 s: 6 s to go
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("launcher, plugin", [("submitit_local", "hydra_plugins.hydra_submitit_launcher"),
+                                              ("ray_local", "hydra_plugins.hydra_ray_launcher")])
+def test_cluster_launchers_run_a_sweep_here(tmp_path, launcher, plugin):
+    """pip install ".[slurm,ray]", then pytest -m slow. submitit_local is the submitit (SLURM)
+    path on this machine; ray_local starts a local Ray cluster."""
+    pytest.importorskip(plugin)
+    sweep = tmp_path / "sweep"
+    proc = _zrp_ga("-m", "seed=0,1", "problem.n_validation=5", "population.generations=3",
+                   f"hydra/launcher={launcher}", f"hydra.sweep.dir={sweep}", timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    manifest = read_manifest(sweep)
+    assert list(manifest["status"]) == ["done", "done"]
+    for d in manifest["dir"]:
+        assert len(pd.read_csv(sweep / str(d) / "convergence.csv")) == 4
