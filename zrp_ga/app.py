@@ -134,7 +134,12 @@ def run(cfg: DictConfig, out_dir: str | Path, progress: Progress | None = None) 
 
         if name == "ga":
             every = int(cfg.get("checkpoint_every", 0))
-            result = ga.evolve(problem, toolbox, settings, rng, on_generation, checkpoint, every, state)
+            try:
+                result = ga.evolve(problem, toolbox, settings, rng, on_generation, checkpoint, every, state)
+            except BaseException as exc:  # Ctrl-C or a crash: say so where the report will look
+                status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+                records.write_json(out / "status.json", {"status": status, "error": repr(exc)})
+                raise
         elif state is not None:
             raise build.ConfigError("resume: only GA runs keep checkpoints")
         elif name == "lm":
