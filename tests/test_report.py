@@ -1,0 +1,156 @@
+"""zrp-ga-report on a real 3-configuration x 3-seed sweep, checked against hand computations."""
+
+import itertools
+import json
+import math
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from zrp_ga import report
+from zrp_ga.callbacks import MANIFEST, read_manifest
+
+CROSSOVERS = ["blend", "sbx", "two_point"]
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    where = tmp_path_factory.mktemp("sweep") / "sweep"
+    proc = subprocess.run(
+        [sys.executable, "-m", "zrp_ga.app", "-m", f"crossover={','.join(CROSSOVERS)}", "seed=0,1,2",
+         "problem=multipose", "problem.n_poses=6", "problem.n_validation=5", "refine=none", "population.mu=10",
+         "population.lambda_=10", "population.generations=6", f"hydra.sweep.dir={where}"],
+        capture_output=True, text=True)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return where
+
+
+def _finals(sweep):
+    """Final costs by crossover, straight from each job's summary.json."""
+    out = {c: [] for c in CROSSOVERS}
+    for job in read_manifest(sweep).itertuples():
+        summary = json.loads((sweep / str(job.dir) / "summary.json").read_text())
+        out[summary["config"]["crossover"]["name"]].append(summary["final_cost"])
+    return {c: np.array(v) for c, v in out.items()}
+
+
+def _u_greater(x, y):
+    return sum((a > b) + 0.5 * (a == b) for a in x for b in y)
+
+
+def _exact_two_sided_p(x, y):
+    """Exact Mann-Whitney p by enumerating every split of the pooled values (no ties here)."""
+    pooled = np.concatenate([x, y])
+    u_obs = _u_greater(x, y)
+    n1 = len(x)
+    us = [_u_greater(pooled[list(c)], np.delete(pooled, list(c))) for c in itertools.combinations(range(len(pooled)), n1)]
+    mean = n1 * len(y) / 2
+    return min(1.0, np.mean([abs(u - mean) >= abs(u_obs - mean) - 1e-12 for u in us]))
+
+
+def test_every_file_is_written(sweep, tmp_path):
+    out = tmp_path / "report"
+    report.write_report([sweep], out)
+    for name in ["runs.csv", "tidy.csv", "summary.csv", "summary.md", "statistics.csv", "statistics.md", "factors.csv",
+                 "left_out.csv", "table2_initial_population.md", "table3_best_params.md"]:
+        assert (out / name).stat().st_size > 0, name
+    for fig in ["fig2_convergence", "convergence_by_configuration", "ecdf_evals_to_target", "validation_error_boxplot"]:
+        assert (out / f"{fig}.png").stat().st_size > 10_000 and (out / f"{fig}.pdf").exists(), fig
+    tidy = pd.read_csv(out / "tidy.csv")
+    assert len(tidy) == 9 * 7 and set(tidy["crossover"]) == set(CROSSOVERS)  # 9 runs x (gen 0..6)
+    assert {"run", "configuration", "gen", "nevals", "best", "val_rms"} <= set(tidy.columns)
+
+
+def test_summary_and_statistics_match_hand_computations(sweep, tmp_path):
+    finals = _finals(sweep)
+    target = float(np.median(np.concatenate(list(finals.values()))))
+    tables = report.write_report([sweep], tmp_path / "report", target=target)
+    summary = tables["summary"].set_index("configuration")
+    labels = {c: f"{c.replace('_', ' ')} crossover" for c in CROSSOVERS}
+    for c, x in finals.items():
+        row = summary.loc[labels[c]]
+        s = np.sort(x)
+        assert row["runs"] == 3 and row["final_cost_median"] == pytest.approx(s[1])
+        # numpy's linear percentile of three values: q1 halfway between the first two
+        assert row["final_cost_q1"] == pytest.approx((s[0] + s[1]) / 2) and row["final_cost_q3"] == pytest.approx((s[1] + s[2]) / 2)
+        assert row["success_rate"] == pytest.approx(np.mean(x <= target))
+
+    # Kruskal-Wallis by hand: ranks of the 9 final costs, H, and for 2 degrees of freedom p = exp(-H/2)
+    pooled = np.concatenate([finals[c] for c in CROSSOVERS])
+    ranks = pooled.argsort().argsort() + 1.0
+    N = len(pooled)
+    H = 12 / (N * (N + 1)) * sum(ranks[3 * i : 3 * i + 3].sum() ** 2 / 3 for i in range(3)) - 3 * (N + 1)
+    st = tables["statistics"]
+    kw = st[(st.metric == "final_cost") & (st.test == "Kruskal-Wallis")].iloc[0]
+    assert kw["statistic"] == pytest.approx(H) and kw["p"] == pytest.approx(math.exp(-H / 2))
+
+    # Mann-Whitney U, its exact p, Holm's correction and A12, by hand
+    pairs = st[(st.metric == "final_cost") & (st.test == "Mann-Whitney U")]
+    assert len(pairs) == 3
+    raw = []
+    for row in pairs.itertuples():
+        a = next(c for c in CROSSOVERS if labels[c] == row.a)
+        b = next(c for c in CROSSOVERS if labels[c] == row.b)
+        u = _u_greater(finals[a], finals[b])
+        assert row.statistic == pytest.approx(u)
+        assert row.a12 == pytest.approx(_u_greater(finals[b], finals[a]) / 9)  # P(a run of A ends lower)
+        assert row.p == pytest.approx(_exact_two_sided_p(finals[a], finals[b]))
+        raw.append(row.p)
+    order = np.argsort(raw)
+    holm, running = np.empty(3), 0.0
+    for k, i in enumerate(order):
+        running = max(running, min(1.0, (3 - k) * raw[i]))
+        holm[i] = running
+    np.testing.assert_allclose(pairs["p_holm"], holm)
+
+
+def test_evaluations_to_target_and_area_under_curve_by_hand(sweep, tmp_path):
+    tables = report.write_report([sweep], tmp_path / "report", target=1.0)
+    runs = tables["runs"]
+    budget = min(pd.read_csv(f"{r}/convergence.csv")["nevals"].iloc[-1] for r in runs["run"])
+    for r in runs.itertuples():
+        conv = pd.read_csv(f"{r.run}/convergence.csv")
+        hits = [e for e, b in zip(conv["nevals"], conv["best"]) if b <= 1.0]
+        assert r.evals_to_target == (hits[0] if hits else np.inf)
+        total, best = 0.0, np.inf
+        rows = list(zip(conv["nevals"], conv["best"]))
+        for (e0, b0), (e1, _) in zip(rows, rows[1:] + [(budget, None)]):
+            best = min(best, b0)
+            if e0 < budget:
+                total += math.log10(best) * (min(e1, budget) - e0)
+        assert r.auc == pytest.approx(total / (budget - rows[0][0]))
+
+
+def test_partial_sweep_reports_what_it_left_out(sweep, tmp_path):
+    partial = tmp_path / "partial"
+    shutil.copytree(sweep, partial)
+    manifest = read_manifest(partial)
+    failed, running = manifest.loc[1], manifest.loc[2]
+    (partial / str(running.dir) / "summary.json").unlink()
+    with open(partial / MANIFEST, "a") as f:
+        f.write(json.dumps({**failed.to_dict(), "status": "failed", "error": "ValueError: made to fail"}) + "\n")
+        f.write(json.dumps({**running.to_dict(), "status": "running", "error": None}) + "\n")
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.report", str(partial), "--out", str(tmp_path / "r")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert "7 runs in 3 configurations" in proc.stdout
+    assert f"left out {partial / str(failed.dir)}: failed: ValueError: made to fail" in proc.stdout
+    assert f"left out {partial / str(running.dir)}: still running" in proc.stdout
+    left = pd.read_csv(tmp_path / "r" / "left_out.csv")
+    assert len(left) == 2
+
+
+def test_nothing_to_report_is_one_clear_line(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.report", str(tmp_path)], capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.startswith("zrp-ga-report: error: no finished run under")
+
+
+def test_settings_in_words():
+    assert report.describe("crossover", "two_point") == "two point crossover"
+    assert report.describe("inversion", "none") == "no inversion"
+    assert report.describe("algorithm", "lm") == "Levenberg-Marquardt"
+    assert report.describe("population.mu", "50") == "mu 50"
