@@ -55,7 +55,7 @@ def _exact_two_sided_p(x, y):
 def test_every_file_is_written(sweep, tmp_path):
     out = tmp_path / "report"
     report.write_report([sweep], out)
-    for name in ["runs.csv", "tidy.csv", "summary.csv", "summary.md", "statistics.csv", "statistics.md", "factors.csv",
+    for name in ["runs.csv", "tidy.csv", "summary.csv", "summary.md", "statistics.csv", "statistics.md", "factors.csv", "factors.md",
                  "left_out.csv", "table2_initial_population.md", "table3_best_params.md"]:
         assert (out / name).stat().st_size > 0, name
     for fig in ["fig2_convergence", "convergence_by_configuration", "ecdf_evals_to_target", "validation_error_boxplot"]:

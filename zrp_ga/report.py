@@ -368,9 +368,14 @@ def _markdown(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_report(paths: list[str | Path], out: str | Path | None = None, target: float | None = None) -> dict:
-    """Build every table and figure of the runs under ``paths`` into ``out``; returns the tables."""
+def write_report(
+    paths: list[str | Path], out: str | Path | None = None, target: float | None = None, only: list[str] = ()
+) -> dict:
+    """Build every table and figure of the runs under ``paths`` into ``out``; returns the tables.
+    ``only``: ``KEY=VALUE`` settings a run must have been given to count (e.g. ``refine=none``)."""
     runs, skipped = find_runs(paths)
+    wanted = _parse_overrides(list(only))
+    runs = [r for r in runs if all(r.overrides.get(k) == v for k, v in wanted.items())]
     if not runs:
         reasons = "; ".join(f"{p}: {why}" for p, why in skipped) or "no convergence.csv found"
         raise ValueError(f"no finished run under {', '.join(map(str, paths))} ({reasons})")
@@ -384,6 +389,8 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
     tables["factors"].to_csv(out / "factors.csv", index=False)
     (out / "summary.md").write_text(_markdown(tables["summary"]))
     (out / "statistics.md").write_text(_markdown(tables["statistics"]))
+    if len(tables["factors"]):
+        (out / "factors.md").write_text(_markdown(tables["factors"]))
     labels, _ = configurations(runs)
     shown = plot_configurations(runs, labels, tables, out)
     chosen = median_runs(runs, labels, list(tables["summary"]["configuration"])[:4])
@@ -402,9 +409,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("dirs", nargs="+", help="run directories, sweep directories, or folders holding them")
     parser.add_argument("--out", default=None, help="report directory (default: DIR/report of the first DIR)")
     parser.add_argument("--target", type=float, default=None, help="target cost (default: 1.05 x the lowest final cost)")
+    parser.add_argument("--only", action="append", default=[], metavar="KEY=VALUE",
+                        help="keep only the runs given this setting (repeatable), e.g. --only refine=none")
     args = parser.parse_args(argv)
     try:
-        tables = write_report(args.dirs, args.out, args.target)
+        tables = write_report(args.dirs, args.out, args.target, args.only)
     except ValueError as exc:
         print(f"zrp-ga-report: error: {exc}", file=sys.stderr)
         sys.exit(2)
