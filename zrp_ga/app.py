@@ -44,9 +44,11 @@ class Progress:
         self._last = now
         done = max(row["gen"] / self.generations if self.generations else 0.0,
                    row["nevals"] / self.max_evals if self.max_evals else 0.0)  # fmt: skip
-        left = row["wall_s"] * (1 - done) / done if done > 0 else float("nan")
+        left = row["wall_s"] * (1 - done) / done if 0 < done <= 1 else None
         text = (f"gen {row['gen']:5d}  evals {row['nevals']:8d}  best {row['best']:.6g}  "
-                f"val_rms {row.get('val_rms', float('nan')):.4g} mm  time left {left:6.1f} s")  # fmt: skip
+                f"val_rms {row.get('val_rms', float('nan')):.4g} mm")  # fmt: skip
+        if left is not None:
+            text += f"  time left {left:6.1f} s"
         if self.tty:
             self.stream.write("\r" + text + ("\n" if final else ""))
         else:
@@ -94,8 +96,8 @@ def run(cfg: DictConfig, out_dir: str | Path, progress: Progress | None = None) 
         raise build.ConfigError(f"algorithm.name: unknown algorithm {name!r}; known: ga, lm, cmaes")
     if cfg.get("checkpoint_every", 0) < 0:
         raise build.ConfigError(f"checkpoint_every: must be >= 0, got {cfg.checkpoint_every}")
-    arm = build.robot(cfg.robot)
-    problem, sim = build.problem(cfg.problem, arm, seed)
+    arm = build.robot(cfg.robot, cfg.problem.get("robot"))
+    problem, extra = build.problem(cfg.problem, arm, seed)
     settings = build.settings(cfg) if name == "ga" else None
     toolbox = build.toolbox(cfg, problem, rng) if name == "ga" else None
     report, model_rank = problem.identifiability(), problem.model_rank()
@@ -155,7 +157,8 @@ def run(cfg: DictConfig, out_dir: str | Path, progress: Progress | None = None) 
 
     truth = problem.true_de
     if problem.cost == "nonlinear":  # the linear cost has no exact null directions to remove
-        result.best, truth = problem.canonical(result.best), problem.canonical(truth)
+        result.best = problem.canonical(result.best)
+        truth = None if truth is None else problem.canonical(truth)
     records.params_by_joint(problem, result.best, truth).to_csv(out / "best_params.csv", index=False)
     records.population_table(problem, result.initial_genes, result.initial_costs).to_csv(
         out / "initial_population.csv", index=False
@@ -181,9 +184,36 @@ def run(cfg: DictConfig, out_dir: str | Path, progress: Progress | None = None) 
         "config": resolved,
         "versions": records.versions(),
     }  # fmt: skip
+    if isinstance(extra, build.Measured):
+        summary.update(measured_outputs(problem, extra, result.best, out))
     records.write_json(out / "summary.json", summary)
     records.write_json(out / "status.json", {"status": "done"})
     return summary
+
+
+def measured_outputs(problem, measured: build.Measured, best: np.ndarray, out: Path) -> dict:
+    """For measured data: the registration, the calibrated model in the instrument's frame (a
+    ZRPRobot YAML that ``from_yaml`` and ``forward`` load back), per-pose errors and their plot."""
+    from zrp_ga import report  # matplotlib only where it is needed
+
+    records.write_json(out / "registration.json", measured.registration.to_dict())
+    robot = problem.layout.robot(problem.nominal, best, name=f"{problem.nominal.name} calibrated")
+    robot.to_yaml(out / "calibrated_robot.yaml")
+    sets = {"calibration": problem.calibration}
+    if problem.validation is not None:
+        sets["validation"] = problem.validation
+    errors = {k: (problem.position_errors(np.zeros_like(best), m), problem.position_errors(best, m)) for k, m in sets.items()}
+    report.plot_pose_errors(errors, out)
+
+    def stats(e: np.ndarray) -> dict:
+        return {"mean": float(e.mean()), "rms": float(np.sqrt(np.mean(e**2))), "max": float(e.max()), "poses": len(e)}
+
+    return {
+        "registration": measured.registration.to_dict(),
+        "position_error_mm": {k: {"nominal": stats(b), "calibrated": stats(a)} for k, (b, a) in errors.items()},
+        "files": {"calibration": measured.calibration.source,
+                  "validation": measured.validation.source if measured.validation is not None else None},
+    }  # fmt: skip
 
 
 @hydra.main(version_base="1.3", config_path="pkg://zrp_ga.conf", config_name="config")
@@ -191,7 +221,8 @@ def main(cfg: DictConfig) -> None:
     hc = HydraConfig.get()
     out = hc.runtime.output_dir
     multirun = hc.mode == RunMode.MULTIRUN
-    progress = Progress(cfg.population.generations, cfg.population.max_evals) if cfg.progress and not multirun else None
+    budget = (cfg.population.generations, cfg.population.max_evals) if cfg.algorithm.name != "lm" else (None, None)
+    progress = Progress(*budget) if cfg.progress and not multirun else None
     try:
         s = run(cfg, out, progress)
     except KeyboardInterrupt:

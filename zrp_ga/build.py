@@ -6,7 +6,9 @@ the run with one line before anything is computed.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import importlib.resources
 import logging
 from pathlib import Path
 
@@ -14,8 +16,10 @@ import numpy as np
 from hydra.utils import get_method
 from omegaconf import DictConfig, OmegaConf
 
-from zrp_ga import ga, robots
+from zrp_ga import ga, measurements, robots
+from zrp_ga.measurements import MeasuredData
 from zrp_ga.problem import CalibrationProblem, Layout, Simulation, simulate
+from zrp_ga.registration import Registration, register
 from zrp_ga.robot import ZRPRobot
 
 log = logging.getLogger(__name__)
@@ -27,17 +31,85 @@ class ConfigError(ValueError):
     """A setting that cannot run; the message names the key."""
 
 
-def robot(cfg: DictConfig) -> ZRPRobot:
-    """The preset ``cfg.name``, or the ZRP YAML file ``cfg.file``."""
+def robot(cfg: DictConfig, measured: str | None = None) -> ZRPRobot:
+    """The preset ``cfg.name``, or the ZRP YAML file ``cfg.file``; a measured problem's own arm
+    (``problem.robot``) first."""
+    if measured:
+        return robots.get(measured)
     if cfg.get("file"):
         return ZRPRobot.from_yaml(Path(cfg.file).expanduser())
     return robots.get(cfg.name)
 
 
-def problem(cfg: DictConfig, arm: ZRPRobot, seed: int) -> tuple[CalibrationProblem, Simulation]:
-    """A simulated calibration problem (the paper's case study and its multi-pose forms)."""
+@dataclasses.dataclass(frozen=True)
+class Measured:
+    """What a problem on measured data was built from."""
+
+    registration: Registration
+    calibration: MeasuredData
+    validation: MeasuredData | None
+
+
+def data_path(name: str) -> Path:
+    """A measurement file: ``pkg:REL`` is a file shipped in zrp_ga/data, anything else a path."""
+    if name.startswith("pkg:"):
+        return Path(str(importlib.resources.files("zrp_ga.data").joinpath(name[4:])))
+    return Path(name).expanduser()
+
+
+def measured_problem(cfg: DictConfig, arm: ZRPRobot, seed: int) -> tuple[CalibrationProblem, Measured]:
+    """Measured poses in an instrument's frame: read, split, registered, then a calibration problem
+    in that frame with the base point identified (and the hand orientation with orientation data)."""
+    formats = {"ur10_ipa": lambda n: measurements.UR10_IPA,
+               "zrp": lambda n: measurements.zrp_format(n, cfg.length_unit, cfg.angle_unit)}  # fmt: skip
+    if cfg.format not in formats:
+        raise ConfigError(f"problem.format: unknown format {cfg.format!r}; known: {', '.join(formats)}")
+    if not cfg.calibration_file:
+        raise ConfigError("problem.calibration_file: a measured problem needs a file")
+    fmt = formats[cfg.format](arm.n)
+    calib = measurements.read(data_path(cfg.calibration_file), fmt, arm.n, cfg.drop_bad_rows)
+    if cfg.validation_file:
+        val = measurements.read(data_path(cfg.validation_file), fmt, arm.n, cfg.drop_bad_rows)
+    elif cfg.validation_fraction:
+        calib, val = measurements.split(calib, cfg.validation_fraction, np.random.default_rng([seed, 2]))
+    else:
+        val = None
+    if cfg.use_orientation and calib.R is None:
+        raise ConfigError(f"problem.use_orientation: {calib.source} has no orientation columns")
+    reg = register(arm, calib.q, calib.p)
+    log.info("registered %s to %s: %.3f mm RMS, tool offset %s mm", arm.name, calib.source, reg.rms * 1e3,
+             np.round(reg.tool * 1e3, 2))  # fmt: skip
+    nominal = reg.apply(arm)
+    layout = Layout(arm.n, base=True, hand=bool(cfg.use_orientation))
+    half = _half_ranges(cfg, layout)
+    try:
+        prob = CalibrationProblem(
+            nominal=nominal, calibration=calib.measurements(cfg.use_orientation), layout=layout, lower=-half,
+            upper=half, validation=val.measurements() if val is not None else None, cost=cfg.cost, norm=cfg.norm,
+            orientation_weight=cfg.orientation_weight, rcond=cfg.rcond,
+        )  # fmt: skip
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    return prob, Measured(reg, calib, val)
+
+
+def _half_ranges(cfg: DictConfig, layout: Layout) -> np.ndarray:
+    half = np.empty(layout.size)
+    for name, block in layout.blocks.items():
+        half[block] = cfg.axis_error if name in ("u0", "hand") else cfg.body_error
+    half *= cfg.search_scale
+    if not np.all(half > 0):
+        raise ConfigError("problem.search_scale, axis_error, body_error: every gene range must be wider than zero")
+    return half
+
+
+def problem(cfg: DictConfig, arm: ZRPRobot, seed: int) -> tuple[CalibrationProblem, Simulation | Measured]:
+    """The calibration problem: simulated (the paper's case study and its multi-pose forms) or
+    measured (``problem.kind: measured``)."""
+    if cfg.kind == "measured":
+        return measured_problem(cfg, arm, seed)
     if cfg.kind != "simulated":
-        raise ConfigError(f"problem.kind: unknown kind {cfg.kind!r}; known: simulated")
+        raise ConfigError(f"problem.kind: unknown kind {cfg.kind!r}; known: simulated, measured")
     for key in ("n_poses", "n_validation"):
         if cfg[key] < (1 if key == "n_poses" else 0):
             raise ConfigError(f"problem.{key}: must be at least {1 if key == 'n_poses' else 0}, got {cfg[key]}")
@@ -52,12 +124,7 @@ def problem(cfg: DictConfig, arm: ZRPRobot, seed: int) -> tuple[CalibrationProbl
         body_error=cfg.body_error, joint_noise=cfg.joint_noise, position_noise=cfg.position_noise,
         orientation_noise=cfg.orientation_noise, position_only=cfg.position_only,
     )  # fmt: skip
-    half = np.empty(layout.size)
-    for name, block in layout.blocks.items():
-        half[block] = cfg.axis_error if name in ("u0", "hand") else cfg.body_error
-    half *= cfg.search_scale
-    if not np.all(half > 0):
-        raise ConfigError("problem.search_scale, axis_error, body_error: every gene range must be wider than zero")
+    half = _half_ranges(cfg, layout)
     try:
         prob = CalibrationProblem(
             nominal=arm, calibration=sim.calibration, validation=sim.validation if cfg.n_validation else None,

@@ -25,7 +25,17 @@ class RobotConf:
 
 @dataclasses.dataclass
 class ProblemConf:
-    kind: str = "simulated"
+    kind: str = "simulated"  # simulated | measured
+    robot: str | None = None  # measured data: the preset arm that was measured (over robot=...)
+    # measured data (kind: measured)
+    format: str = "zrp"  # zrp (zrp_ga/measurements.py) | ur10_ipa
+    calibration_file: str | None = None  # a path, or pkg:NAME for the data shipped with zrp_ga
+    validation_file: str | None = None
+    validation_fraction: float | None = None  # or split the calibration file at random
+    drop_bad_rows: bool = False
+    length_unit: str = "m"  # zrp format
+    angle_unit: str = "rad"
+    use_orientation: bool = False  # fit measured orientations too (and the hand orientation)
     n_poses: int = 1
     n_validation: int = 100
     axis_error: float = 0.01

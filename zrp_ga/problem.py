@@ -301,6 +301,12 @@ class CalibrationProblem:
         return de
 
     # --- judging a calibration ------------------------------------------------------------------
+    def position_errors(self, de: ArrayLike, data: Measurements) -> Array:
+        """Distance (mm) between measured and predicted position at every pose of ``data``, (M,)."""
+        u0, b0, R_h0 = self.layout.unpack(self.nominal, np.atleast_2d(np.asarray(de, dtype=float))[:1])
+        _, p = kinematics.forward_batch(_unit(u0), b0, R_h0, data.q, self.nominal.prismatic)
+        return np.linalg.norm(data.p - p[0], axis=1) * 1e3
+
     def validation_error(self, de: ArrayLike) -> tuple[Array, Array]:
         """RMS and max position error (mm) on the validation poses, each (P,); NaN without them."""
         de = np.atleast_2d(np.asarray(de, dtype=float))

@@ -359,6 +359,20 @@ def plot_configurations(runs: list[Run], labels: list[str], tables: dict, out: P
     return shown
 
 
+def plot_pose_errors(errors: dict[str, tuple[np.ndarray, np.ndarray]], out: Path, name: str = "pose_errors") -> None:
+    """Per-pose position errors before and after calibration, one panel per set of poses;
+    ``errors[set] = (nominal, calibrated)`` in mm."""
+    fig, axes = plt.subplots(len(errors), 1, figsize=(8, 2.8 * len(errors)), squeeze=False)
+    for ax, (label, (before, after)) in zip(axes[:, 0], errors.items()):
+        idx = np.arange(1, len(before) + 1)
+        ax.plot(idx, before, ".", ms=2.5, alpha=0.6, label=f"nominal, registered (RMS {np.sqrt(np.mean(before**2)):.3g} mm)")
+        ax.plot(idx, after, ".", ms=2.5, alpha=0.6, label=f"calibrated (RMS {np.sqrt(np.mean(after**2)):.3g} mm)")
+        ax.set_xlabel(f"pose of the {label} set")
+        ax.set_ylabel("position error, mm")
+        ax.legend(fontsize=7, markerscale=3)
+    _save(fig, out, name)
+
+
 def _markdown(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
     cols = list(df.columns)
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]

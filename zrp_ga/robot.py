@@ -101,6 +101,20 @@ class ZRPRobot:
         fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         return ZRPRobot(**{**fields, **changes})
 
+    def transformed(self, R: ArrayLike, t: ArrayLike) -> ZRPRobot:
+        """The same arm seen from another frame: ``x' = R x + t`` (R (3, 3) rotation, t (3,) m)."""
+        R = _array("R", R, (3, 3))
+        t = _array("t", t, (3,))
+        b0 = self.b0 @ R.T
+        b0[0] += t
+        return self.replace(u0=self.u0 @ R.T, b0=b0, R_h0=R @ self.R_h0, normalize=True)
+
+    def with_tool(self, offset: ArrayLike) -> ZRPRobot:
+        """The end point moved by ``offset`` (3,), m, given in the hand frame (e.g. a probe on the flange)."""
+        b0 = self.b0.copy()
+        b0[-1] += self.R_h0 @ _array("tool offset", offset, (3,))
+        return self.replace(b0=b0)
+
     # --- DH tables -------------------------------------------------------------------------
     @classmethod
     def from_dh(
