@@ -114,3 +114,8 @@ def test_the_optimiser_never_starts_from_the_truth(tmp_path):
     cfg = _cfg()
     _, sim = build.problem(cfg.problem, build.robot(cfg.robot), 0)
     assert np.min(np.abs(init[:, :, None] - sim.true_de[None, None, :])) > 1e-12  # no gene equals a true error
+
+
+def test_unknown_operator_parameter_is_refused_by_name(tmp_path):
+    with pytest.raises(build.ConfigError, match=r"crossover.op: .*unknown parameter 'etaa' for zrp_ga.operators.crossover.sbx \(takes: low, up, eta, indpb\)"):
+        app.run(_cfg("crossover=sbx", "+crossover.op.etaa=3"), tmp_path)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib.resources
+import inspect
 import logging
 from pathlib import Path
 
@@ -170,7 +171,12 @@ def operator(node: DictConfig) -> functools.partial:
     params = OmegaConf.to_container(node, resolve=True)
     target = params.pop("_target_")
     params.pop("_partial_", None)
-    return functools.partial(get_method(target), **params)
+    fn = get_method(target)
+    takes = [k for k in inspect.signature(fn).parameters if k not in ("ind", "ind1", "ind2", "costs", "k", "rng")]
+    unknown = sorted(set(params) - set(takes))
+    if unknown:
+        raise ValueError(f"unknown parameter {unknown[0]!r} for {target} (takes: {', '.join(takes) or 'none'})")
+    return functools.partial(fn, **params)
 
 
 def toolbox(cfg: DictConfig, prob: CalibrationProblem, rng: np.random.Generator):
