@@ -21,7 +21,11 @@ from pathlib import Path
 from zrp_ga import app, config
 
 RESULTS = Path(__file__).parent / "results"
-RUNS = {"GA + pseudo-inverse step": ["problem=ur10_ipa"], "Levenberg-Marquardt": ["problem=ur10_ipa", "algorithm=lm"]}
+VARIANTS = {"positions": [], "positions, weighted by their standard deviations": ["problem.use_weights=true"],
+            "positions and orientations": ["problem.use_orientation=true"]}  # fmt: skip
+RUNS = {f"{method}, {data}": ["problem=ur10_ipa", *alg, *over]
+        for data, over in VARIANTS.items()
+        for method, alg in (("GA + pseudo-inverse step", []), ("Levenberg-Marquardt", ["algorithm=lm"]))}  # fmt: skip
 
 
 def main() -> None:
@@ -34,21 +38,25 @@ def main() -> None:
              "|---|---|---|---|---|---|---|"]  # fmt: skip
     summaries = {}
     for name, over in RUNS.items():
-        s = app.run(config.load(over), root / name.split()[0])
+        s = app.run(config.load(over), root / str(len(summaries)))
         summaries[name] = s
         for part in ("calibration", "validation"):
             e = s["position_error_mm"][part]
             fmt = lambda d: f"{d['mean']:.3f} / {d['rms']:.3f} / {d['max']:.3f}"  # noqa: E731
             lines.append(f"| {name} | `zrp-ga {' '.join(over)}` | {part} ({Path(s['files'][part]).name}) | "
                          f"{e['nominal']['poses']} | {fmt(e['nominal'])} | {fmt(e['calibrated'])} | {s['wall_s']:.2f} |")  # fmt: skip
-    ga, lm = (summaries[k]["position_error_mm"]["validation"]["calibrated"]["rms"] for k in RUNS)
-    reg = summaries["Levenberg-Marquardt"]["registration"]
+    ratios = []
+    for data in VARIANTS:
+        ga, lm = (summaries[f"{m}, {data}"]["position_error_mm"]["validation"]["calibrated"]["rms"]
+                  for m in ("GA + pseudo-inverse step", "Levenberg-Marquardt"))  # fmt: skip
+        ratios.append(f"{data}: {ga / lm:.4f}")
+    reg = summaries["Levenberg-Marquardt, positions"]["registration"]
     lines += ["", f"Registration of the nominal UR10 to series B: {reg['rms_mm']:.3f} mm RMS, {reg['max_mm']:.3f} mm max; "
               f"tool offset {', '.join(f'{v * 1e3:.2f}' for v in reg['tool_m'])} mm in the flange frame.", "",
-              f"Series C RMS error, GA / LM: {ga / lm:.4f}.", ""]  # fmt: skip
+              "Series C RMS error, GA / LM: " + "; ".join(ratios) + ".", ""]  # fmt: skip
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "ur10_ipa.md").write_text("\n".join(lines))
-    shutil.copy(root / "GA" / "pose_errors.png", RESULTS / "ur10_ipa_pose_errors.png")
+    shutil.copy(root / "0" / "pose_errors.png", RESULTS / "ur10_ipa_pose_errors.png")  # GA, positions
     print("\n".join(lines))
     print(f"runs in {root}")
 

@@ -48,6 +48,20 @@ def test_registration_recovers_base_and_tool_to_the_noise(rng):
     assert reg.rms == pytest.approx(NOISE * np.sqrt(3), rel=0.15)  # what is left is the noise
 
 
+def test_registration_finds_the_tool_rotation_from_measured_orientations(rng):
+    arm, world, _, _ = _foreign(rng, kinematic_errors=False)
+    turn = Rotation.from_rotvec([0.1, -0.2, np.pi / 2]).as_matrix()  # a probe frame turned on the hand
+    q = random_joints(arm, 100, rng)
+    R_meas, p = kinematics.forward(world.replace(R_h0=world.R_h0 @ turn), q)
+    noisy = Rotation.from_rotvec(rng.normal(scale=1e-4, size=(100, 3))).as_matrix() @ R_meas
+    reg = registration.register(arm, q, p, rotations=noisy)
+    assert np.degrees(Rotation.from_matrix(reg.tool_rotation @ turn.T).magnitude()) < 0.01
+    assert reg.rms_angle < 3e-4
+    model = reg.apply(arm)  # the registered model predicts the measured orientations
+    R_model, _ = kinematics.forward(model, q)
+    assert np.max(Rotation.from_matrix(np.swapaxes(R_model, 1, 2) @ R_meas).magnitude()) < 1e-3
+
+
 def test_calibration_in_the_instruments_frame_and_the_exported_model(tmp_path, rng):
     arm, world, _, _ = _foreign(rng)
     q_cal, q_val = random_joints(arm, 200, rng), random_joints(arm, 100, rng)

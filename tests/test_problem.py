@@ -107,3 +107,21 @@ def test_simulated_measurements_follow_the_true_robot(rng):
     R, p = kinematics.forward(sim.truth, sim.calibration.q)
     np.testing.assert_allclose(sim.calibration.p, p)
     assert np.abs(sim.true_de[18:]).max() <= 5e-4 and np.abs(sim.true_de[:18]).max() < 0.011
+
+
+def test_position_weights_scale_the_position_rows(rng):
+    arm = robots.get("ur10")
+    sim = simulate(arm, Layout(6), rng, n_poses=7, joint_noise=0.0)
+    w = rng.uniform(0.5, 2.0, size=(7, 3))
+    data = Measurements(q=sim.calibration.q, p=sim.calibration.p, weights=w)
+    prob = CalibrationProblem(arm, data, Layout(6), -0.02, 0.02, cost="nonlinear")
+    de = rng.uniform(-0.005, 0.005, size=(4, 36))
+    for g, cost in zip(de, prob.costs(de)):
+        u0 = arm.u0 + g[:18].reshape(6, 3)
+        unit = u0 / np.linalg.norm(u0, axis=1, keepdims=True)
+        b0 = arm.b0.copy()
+        b0[1:] += g[18:].reshape(6, 3)
+        _, p = kinematics.forward(arm.replace(u0=unit, b0=b0), data.q)
+        rows = np.concatenate([((data.p - p) * w).ravel(), -0.5 * (np.sum(u0**2, axis=1) - 1)])
+        assert cost == pytest.approx(np.linalg.norm(rows), rel=1e-12)
+        np.testing.assert_allclose(prob.residual(g), rows, atol=1e-15)

@@ -77,7 +77,9 @@ def measured_problem(cfg: DictConfig, arm: ZRPRobot, seed: int) -> tuple[Calibra
         val = None
     if cfg.use_orientation and calib.R is None:
         raise ConfigError(f"problem.use_orientation: {calib.source} has no orientation columns")
-    reg = register(arm, calib.q, calib.p)
+    if cfg.use_weights and calib.std is None:
+        raise ConfigError(f"problem.use_weights: {calib.source} has no standard-deviation columns")
+    reg = register(arm, calib.q, calib.p, rotations=calib.R if cfg.use_orientation else None)
     log.info("registered %s to %s: %.3f mm RMS, tool offset %s mm", arm.name, calib.source, reg.rms * 1e3,
              np.round(reg.tool * 1e3, 2))  # fmt: skip
     nominal = reg.apply(arm)
@@ -85,7 +87,7 @@ def measured_problem(cfg: DictConfig, arm: ZRPRobot, seed: int) -> tuple[Calibra
     half = _half_ranges(cfg, layout)
     try:
         prob = CalibrationProblem(
-            nominal=nominal, calibration=calib.measurements(cfg.use_orientation), layout=layout, lower=-half,
+            nominal=nominal, calibration=calib.measurements(cfg.use_orientation, cfg.use_weights), layout=layout, lower=-half,
             upper=half, validation=val.measurements() if val is not None else None, cost=cfg.cost, norm=cfg.norm,
             orientation_weight=cfg.orientation_weight, rcond=cfg.rcond,
         )  # fmt: skip

@@ -36,6 +36,7 @@ class ProblemConf:
     length_unit: str = "m"  # zrp format
     angle_unit: str = "rad"
     use_orientation: bool = False  # fit measured orientations too (and the hand orientation)
+    use_weights: bool = False  # weight position errors by the rows' standard deviations
     n_poses: int = 1
     n_validation: int = 100
     axis_error: float = 0.01

@@ -75,17 +75,17 @@ def _forward_kernel(U, B, H, c, s, t, R_out, p_out):  # pragma: no cover
 
 
 @njit(cache=True)
-def _residual_kernel(U, B, H, c, s, t, p_meas, R_meas, use_rot, out):  # pragma: no cover
-    """out (2, P): sums over poses of |dr|^2 and |dp|^2."""
+def _residual_kernel(U, B, H, c, s, t, p_meas, wp, R_meas, use_rot, out):  # pragma: no cover
+    """out (2, P): sums over poses of |dr|^2 and |wp * dp|^2 (wp (M, 3): position weights)."""
     P = U.shape[2]
     X = np.empty((12, P))
     out[:, :] = 0.0
     for m in range(c.shape[0]):
         _chain(U, B, H, c[m], s[m], t[m], X)
         for p in range(P):
-            ex = p_meas[m, 0] - X[0, p]
-            ey = p_meas[m, 1] - X[1, p]
-            ez = p_meas[m, 2] - X[2, p]
+            ex = (p_meas[m, 0] - X[0, p]) * wp[m, 0]
+            ey = (p_meas[m, 1] - X[1, p]) * wp[m, 1]
+            ez = (p_meas[m, 2] - X[2, p]) * wp[m, 2]
             out[1, p] += ex * ex + ey * ey + ez * ez
         if use_rot:
             # W = R_meas R^T, R[b, k] = X[3 + 3k + b]; dr = vee((W - W^T) / 2)
@@ -185,20 +185,22 @@ def residual_sums(
     if R_meas.shape != (M, 3, 3):
         raise ValueError(f"R_meas: expected shape ({M}, 3, 3), got {R_meas.shape}")
     out = np.empty((2, P))
-    _residual_kernel(U, B, H, *joint_terms(q, prismatic), p_meas, R_meas, use_rot, out)
+    _residual_kernel(U, B, H, *joint_terms(q, prismatic), p_meas, np.ones((M, 3)), R_meas, use_rot, out)
     return out.T
 
 
 def residual_sums_unchecked(
-    U: Array, B: Array, H: Array, terms: tuple[Array, Array, Array], p_meas: Array, R_meas: Array | None
+    U: Array, B: Array, H: Array, terms: tuple[Array, Array, Array], p_meas: Array, R_meas: Array | None,
+    weights: Array | None = None,
 ) -> Array:
     """:func:`residual_sums` for callers that hold the kernels' layout already (the GA's fitness):
-    U (n, 3, P), B (n+1, 3, P), H (3, 3, P) contiguous, ``terms = joint_terms(q, prismatic)``.
-    No checks. Returns (2, P)."""
+    U (n, 3, P), B (n+1, 3, P), H (3, 3, P) contiguous, ``terms = joint_terms(q, prismatic)``,
+    ``weights`` (M, 3) on the position errors (ones if None). No checks. Returns (2, P)."""
     out = np.empty((2, U.shape[2]))
     use_rot = R_meas is not None
     R = R_meas if use_rot else np.zeros((p_meas.shape[0], 3, 3))
-    _residual_kernel(U, B, H, *terms, p_meas, R, use_rot, out)
+    wp = np.ones(p_meas.shape) if weights is None else weights
+    _residual_kernel(U, B, H, *terms, p_meas, wp, R, use_rot, out)
     return out
 
 

@@ -80,8 +80,13 @@ class MeasuredData:
     std: NDArray[np.float64] | None  # (M, 3), m
     lines: NDArray[np.int64]  # (M,)
 
-    def measurements(self, orientation: bool = False) -> Measurements:
-        return Measurements(q=self.q, p=self.p, R=self.R if orientation else None)
+    def measurements(self, orientation: bool = False, weights: bool = False) -> Measurements:
+        """For a problem: orientations only if asked; with ``weights``, each position error is
+        weighted by the median standard deviation over its own (so the cost stays in metres)."""
+        w = None
+        if weights and self.std is not None:
+            w = np.median(self.std) / np.maximum(self.std, 1e-12)
+        return Measurements(q=self.q, p=self.p, R=self.R if orientation else None, weights=w)
 
     def subset(self, rows: NDArray) -> MeasuredData:
         pick = lambda a: None if a is None else a[rows]  # noqa: E731

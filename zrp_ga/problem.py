@@ -94,11 +94,12 @@ class Layout:
 @dataclasses.dataclass(frozen=True)
 class Measurements:
     """Measured poses: joint values q (M, n) given to the model, positions p (M, 3) m, and
-    orientations R (M, 3, 3), or None for position-only data."""
+    orientations R (M, 3, 3), or None for position-only data; optional position weights (M, 3)."""
 
     q: Array
     p: Array
     R: Array | None = None
+    weights: Array | None = None  # (M, 3) on the position errors, e.g. a typical sigma / each row's sigma
 
     def __post_init__(self) -> None:
         q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -106,6 +107,8 @@ class Measurements:
         checks = [("q", q, q.shape if q.ndim == 2 else (M, -1)), ("p", self.p, (M, 3))]
         if self.R is not None:
             checks.append(("R", self.R, (M, 3, 3)))
+        if self.weights is not None:
+            checks.append(("weights", self.weights, (M, 3)))
         for name, value, shape in checks:
             a = np.asarray(value, dtype=float)
             if a.shape != shape:
@@ -160,9 +163,10 @@ class CalibrationProblem:
         data = self.calibration
         self._pose_rows = 3 if data.position_only else 6
         self.n_rows = self._pose_rows * data.M + n
-        self._row_weights = np.ones(self.n_rows)
-        if not data.position_only:
-            self._row_weights[: 6 * data.M] = np.tile([self.orientation_weight] * 3 + [1.0] * 3, data.M)
+        wp = np.ones((data.M, 3)) if data.weights is None else data.weights
+        self._position_weights = wp
+        pose = wp if data.position_only else np.hstack([np.full((data.M, 3), self.orientation_weight), wp])
+        self._row_weights = np.concatenate([pose.ravel(), np.ones(n)])
         self._terms = kinematics.joint_terms(data.q, self.nominal.prismatic)
         self.J_nominal = self._jacobian_at(np.zeros(K))
         self.y_nominal = self._residual_one(np.zeros(K))  # [dr; dp; 0] of the nominal robot
@@ -231,7 +235,7 @@ class CalibrationProblem:
             with np.errstate(all="ignore"):
                 U, B, H, length2 = self._kernel_layout(de)
                 data = self.calibration
-                sums = kinematics.residual_sums_unchecked(U, B, H, self._terms, data.p, data.R)
+                sums = kinematics.residual_sums_unchecked(U, B, H, self._terms, data.p, data.R, self._position_weights)
                 unit = 0.5 * (length2 - 1.0)
                 total = self.orientation_weight**2 * sums[0] + sums[1] + np.einsum("ip,ip->p", unit, unit)
         with np.errstate(all="ignore"):
