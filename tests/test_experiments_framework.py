@@ -6,7 +6,6 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -16,9 +15,6 @@ from zrp_ga import app, build, config, records
 from zrp_ga.callbacks import read_manifest
 from zrp_ga.records import WALL_CLOCK_COLUMNS
 
-CONF = Path(app.__file__).resolve().parent.parent / "conf"
-if not (CONF / "config.yaml").exists():  # installed, not editable: the configs ship in the package
-    CONF = Path(app.__file__).resolve().parent / "conf"
 GROUPS = ["robot", "problem", "algorithm", "population", "selection", "crossover", "mutation", "inversion",
           "rotation", "refine", "experiment"]
 
@@ -26,7 +22,7 @@ GROUPS = ["robot", "problem", "algorithm", "population", "selection", "crossover
 def _options(group):
     import importlib.resources
 
-    files = importlib.resources.files(f"zrp_ga.conf.{group}".replace("/", "."))
+    files = importlib.resources.files(f"zrp_ga.conf.{group}")
     return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".yaml"))
 
 

@@ -108,7 +108,6 @@ def read(path: str | Path, fmt: Format, n_joints: int, drop_bad_rows: bool = Fal
     except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
         raise ValueError(f"{path}: cannot be read as a '{fmt.sep}'-separated file ({exc})".replace("\n", " ")) from None
     raw.columns = [c.strip() for c in raw.columns]
-    present_joints = [c for c in raw.columns if c in fmt.joints]
     if fmt.joints[0] == "q1":  # generic format: count the q columns to name a wrong joint count
         qs = [c for c in raw.columns if c.startswith("q") and c[1:].isdigit()]
         if qs and len(qs) != n_joints:
@@ -118,7 +117,6 @@ def read(path: str | Path, fmt: Format, n_joints: int, drop_bad_rows: bool = Fal
     if missing:
         raise ValueError(f"{path}: missing column {missing[0]!r}" + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else "")
                          + f"; columns found: {', '.join(raw.columns)}")  # fmt: skip
-    del present_joints
     optional = [c for group in (fmt.orientation, fmt.std) if group and all(c in raw.columns for c in group) for c in group]
     columns = required + optional
     values = pd.DataFrame({c: pd.to_numeric(raw[c].str.strip().str.replace(fmt.decimal, ".", regex=False), errors="coerce")
