@@ -77,9 +77,8 @@ def _zrp_ga(*args, **kw):
 def test_bad_config_is_one_line_naming_the_key(tmp_path, override, expected):
     proc = _zrp_ga(override, f"hydra.run.dir={tmp_path / 'run'}")
     assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines() == [f"zrp-ga: error: {expected}"] or (
-        expected in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
-    )
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("zrp-ga: error: ") and expected in lines[0]
     assert not (tmp_path / "run" / "convergence.csv").exists()
 
 

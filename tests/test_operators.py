@@ -112,8 +112,8 @@ def test_selections_prefer_low_costs_and_treat_nan_as_worst(rng):
     costs = np.array([np.nan, 5.0, 1.0, np.inf, 3.0])
     picks = selection.tournament(costs, 5000, rng, size=3)
     counts = np.bincount(picks, minlength=5)
-    assert counts[2] > counts[4] > counts[1] and counts[0] == counts[3] == 0 or counts[0] < counts[2]
-    # a NaN wins only a tournament of NaN/inf entrants: at most 2/5 cubed of them
-    assert counts[0] + counts[3] <= 0.1 * 5000
+    assert counts[2] > counts[4] > counts[1]
+    # NaN and inf win only tournaments with no finite entrant: (2/5)^3 = 6.4% of them
+    assert 0.04 * 5000 < counts[0] + counts[3] < 0.09 * 5000
     picks = selection.truncation(costs, 1000, rng, fraction=0.4)
     assert set(picks) == {2, 4}
