@@ -19,18 +19,16 @@ import cma
 import numpy as np
 from scipy.optimize import least_squares
 
-from zrp_ga.ga import RunResult
+from zrp_ga.ga import RunResult, population_stats
 from zrp_ga.problem import CalibrationProblem
 
 
 def _row(gen: int, nevals: int, costs: np.ndarray, t_start: float, t_eval: float) -> dict:
-    finite = costs[np.isfinite(costs)]
-    stats = (finite.min(), finite.mean(), np.median(finite), finite.std(), finite.max()) if finite.size else (np.nan,) * 5
+    stats = population_stats(np.sort(costs))  # np.sort puts NaN last, inf after every finite cost
     return dict(
-        gen=gen, nevals=nevals, **dict(zip(("best", "mean", "median", "std", "worst"), stats)),
-        n_nonfinite=int(costs.size - finite.size), eval_s=t_eval, bookkeeping_s=0.0, refine_s=0.0,
-        wall_s=time.perf_counter() - t_start,
-    )  # fmt: skip
+        gen=gen, nevals=nevals, **stats, n_nonfinite=int(costs.size - np.isfinite(costs).sum()),
+        eval_s=t_eval, bookkeeping_s=0.0, refine_s=0.0, wall_s=time.perf_counter() - t_start,
+    )
 
 
 def lm(

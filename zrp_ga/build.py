@@ -25,7 +25,7 @@ from zrp_ga.robot import ZRPRobot
 
 log = logging.getLogger(__name__)
 
-FAMILIES = ("crossover", "mutation", "inversion", "rotation")
+FAMILIES = ("crossover", "mutation", "inversion", "rotation")  # operator groups
 
 
 class ConfigError(ValueError):
@@ -139,18 +139,15 @@ def problem(cfg: DictConfig, arm: ZRPRobot, seed: int) -> tuple[CalibrationProbl
     return prob, sim
 
 
+# GASettings' field names, as the config calls them
+SETTING_KEYS = {"p_cx": "crossover.prob", "p_mut": "mutation.prob", "p_inv": "inversion.prob",
+                "p_rot": "rotation.prob", "refine_share": "refine.share", "generations": "population.generations",
+                "max_evals": "population.max_evals", "stagnation": "algorithm.stagnation"}  # fmt: skip
+
+
 def settings(cfg: DictConfig) -> ga.GASettings:
-    """GA sizes, probabilities and stop criteria; errors name the config key."""
+    """GA sizes, probabilities and stop criteria, checked by GASettings; errors name the config key."""
     pop, alg = cfg.population, cfg.algorithm
-    for family in FAMILIES:
-        p = cfg[family].prob
-        if not (isinstance(p, (int, float)) and 0.0 <= p <= 1.0):
-            raise ConfigError(f"{family}.prob: probability {p} is outside [0, 1]")
-    if not 0.0 <= cfg.refine.share <= 1.0:
-        raise ConfigError(f"refine.share: {cfg.refine.share} is outside [0, 1]")
-    for key in ("mu", "lambda_"):
-        if pop[key] < 1:
-            raise ConfigError(f"population.{key}: must be at least 1, got {pop[key]}")
     try:
         return ga.GASettings(
             mu=pop.mu, lambda_=pop.lambda_, generations=pop.generations, max_evals=pop.max_evals,
@@ -160,7 +157,8 @@ def settings(cfg: DictConfig) -> ga.GASettings:
             refine_share=cfg.refine.share,
         )  # fmt: skip
     except ValueError as exc:
-        raise ConfigError(f"algorithm/population: {exc}") from None
+        field, _, rest = str(exc).partition(":")
+        raise ConfigError(f"{SETTING_KEYS.get(field, field)}:{rest}") from None
 
 
 def operator(node: DictConfig) -> functools.partial:

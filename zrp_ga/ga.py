@@ -119,7 +119,7 @@ def build_toolbox(
     return toolbox
 
 
-def _stats(sorted_costs: Array) -> dict[str, float]:
+def population_stats(sorted_costs: Array) -> dict[str, float]:
     """Population statistics of costs sorted ascending (NaN and inf, last, left out)."""
     finite = sorted_costs[: int(np.isfinite(sorted_costs).sum())]
     n = finite.size
@@ -204,7 +204,7 @@ def evolve(
             top.append(ind)
         if top:
             hof.update(top)
-        row = dict(gen=gen, nevals=nevals, **_stats(costs[order]), n_nonfinite=n_nonfinite)
+        row = dict(gen=gen, nevals=nevals, **population_stats(costs[order]), n_nonfinite=n_nonfinite)
         t_book += time.perf_counter() - t0
         row.update(eval_s=t_eval, bookkeeping_s=t_book, refine_s=t_refine, wall_s=time.perf_counter() - t_start)
         logbook.record(**row)

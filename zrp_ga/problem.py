@@ -306,10 +306,14 @@ class CalibrationProblem:
 
     # --- judging a calibration ------------------------------------------------------------------
     def position_errors(self, de: ArrayLike, data: Measurements) -> Array:
-        """Distance (mm) between measured and predicted position at every pose of ``data``, (M,)."""
-        u0, b0, R_h0 = self.layout.unpack(self.nominal, np.atleast_2d(np.asarray(de, dtype=float))[:1])
-        _, p = kinematics.forward_batch(_unit(u0), b0, R_h0, data.q, self.nominal.prismatic)
-        return np.linalg.norm(data.p - p[0], axis=1) * 1e3
+        """Distance (mm) between measured and predicted position at every pose of ``data``: (M,)
+        for one genome, (P, M) for a population (NaN where the genes break the model)."""
+        de = np.asarray(de, dtype=float)
+        u0, b0, R_h0 = self.layout.unpack(self.nominal, de)
+        with np.errstate(all="ignore"):
+            _, p = kinematics.forward_batch(_unit(u0), b0, R_h0, data.q, self.nominal.prismatic)
+            err = np.linalg.norm(data.p[None] - p, axis=2) * 1e3
+        return err[0] if de.ndim == 1 else err
 
     def validation_error(self, de: ArrayLike) -> tuple[Array, Array]:
         """RMS and max position error (mm) on the validation poses, each (P,); NaN without them."""
@@ -317,11 +321,8 @@ class CalibrationProblem:
         if self.validation is None:
             nan = np.full(de.shape[0], np.nan)
             return nan, nan
-        u0, b0, R_h0 = self.layout.unpack(self.nominal, de)
-        with np.errstate(all="ignore"):
-            _, p = kinematics.forward_batch(_unit(u0), b0, R_h0, self.validation.q, self.nominal.prismatic)
-            err = np.linalg.norm(self.validation.p[None] - p, axis=2) * 1e3
-            return np.sqrt(np.mean(err**2, axis=1)), np.max(err, axis=1)
+        err = self.position_errors(de, self.validation)
+        return np.sqrt(np.mean(err**2, axis=1)), np.max(err, axis=1)
 
     def identifiable_projector(self) -> Array:
         """Orthogonal projector (K, K) onto the parameter directions the calibration and validation

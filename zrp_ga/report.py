@@ -264,7 +264,7 @@ def build_tables(runs: list[Run], target: float | None = None) -> dict[str, pd.D
         factors.append(f)
     factors_df = pd.concat(factors) if factors else pd.DataFrame()
     return dict(runs=runs_df, tidy=pd.concat(tidy, ignore_index=True), summary=summary_df,
-                statistics=statistics.reset_index(drop=True), factors=factors_df)  # fmt: skip
+                statistics=statistics.reset_index(drop=True), factors=factors_df, labels=labels)  # fmt: skip
 
 
 def _save(fig, out: Path, name: str) -> None:
@@ -405,7 +405,7 @@ def write_report(
     (out / "statistics.md").write_text(_markdown(tables["statistics"]))
     if len(tables["factors"]):
         (out / "factors.md").write_text(_markdown(tables["factors"]))
-    labels, _ = configurations(runs)
+    labels = tables["labels"]
     shown = plot_configurations(runs, labels, tables, out)
     chosen = median_runs(runs, labels, list(tables["summary"]["configuration"])[:4])
     plot_runs(chosen, out)
