@@ -10,3 +10,15 @@ def test_every_package_and_config_group_is_listed_in_pyproject():
     groups = {"zrp_ga.conf." + ".".join(d.relative_to(ROOT / "conf").parts)
               for d in (ROOT / "conf").rglob("*") if d.is_dir() and d.name != "__pycache__"}
     assert code | groups | {"zrp_ga.conf"} == listed
+
+
+def test_compiled_code_is_never_cached_inside_the_package():
+    import numpy as np
+
+    from zrp_ga import kinematics, robots
+    from zrp_ga.operators import reverse_segments
+
+    kinematics.forward(robots.get("puma560"), np.zeros((2, 6)))
+    reverse_segments(np.zeros((1, 4)), np.array([0]), np.array([3]))
+    package = ROOT / "zrp_ga"
+    assert not [p for p in package.rglob("*") if p.suffix in (".nbi", ".nbc")]

@@ -20,7 +20,7 @@ experiments/bench_kinematics.py).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from zrp_ga._numba import jit
 from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga.robot import ZRPRobot
@@ -28,7 +28,7 @@ from zrp_ga.robot import ZRPRobot
 Array = NDArray[np.float64]
 
 
-@njit(cache=True)
+@jit
 def _chain(U, B, H, c, s, t, X):  # pragma: no cover - compiled
     """All P parameter sets at one pose, in place: X (12, P), rows 0-2 the position p, rows
     3 + 3j .. 5 + 3j column j of R_h. U (n, 3, P), B (n+1, 3, P), H (3, 3, P): the population
@@ -62,7 +62,7 @@ def _chain(U, B, H, c, s, t, X):  # pragma: no cover - compiled
                 Xk[p] += Bk[p] + ti * Uk[p]
 
 
-@njit(cache=True)
+@jit
 def _forward_kernel(U, B, H, c, s, t, R_out, p_out):  # pragma: no cover
     X = np.empty((12, U.shape[2]))
     for m in range(c.shape[0]):
@@ -74,7 +74,7 @@ def _forward_kernel(U, B, H, c, s, t, R_out, p_out):  # pragma: no cover
                     R_out[p, m, k, j] = X[3 + 3 * j + k, p]
 
 
-@njit(cache=True)
+@jit
 def _residual_kernel(U, B, H, c, s, t, p_meas, wp, R_meas, use_rot, out):  # pragma: no cover
     """out (2, P): sums over poses of |dr|^2 and |wp * dp|^2 (wp (M, 3): position weights)."""
     P = U.shape[2]

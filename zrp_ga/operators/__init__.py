@@ -14,7 +14,7 @@ then costs a few numpy calls, less than the evaluation of its children).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from zrp_ga._numba import jit
 from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
@@ -49,7 +49,7 @@ def block_bounds(rng: np.random.Generator, N: int, blocks: list[tuple[int, int]]
     return usable[pick, 0], usable[pick, 1]
 
 
-@njit(cache=True)
+@jit
 def reverse_segments(A, i, j):  # pragma: no cover - compiled
     """Reverse ``A[r, i[r] .. j[r]]`` (inclusive) of every row in place."""
     for r in range(A.shape[0]):
@@ -60,7 +60,7 @@ def reverse_segments(A, i, j):  # pragma: no cover - compiled
             b -= 1
 
 
-@njit(cache=True)
+@jit
 def rotate_segments(A, i, j, shift):  # pragma: no cover - compiled
     """Shift ``A[r, i[r] .. j[r]]`` (inclusive) cyclically right by ``shift[r]`` places, in place."""
     buf = np.empty(A.shape[1])
@@ -72,7 +72,7 @@ def rotate_segments(A, i, j, shift):  # pragma: no cover - compiled
             A[r, i[r] + k] = buf[k]
 
 
-@njit(cache=True)
+@jit
 def swap_segments(A, B, lo, hi):  # pragma: no cover - compiled
     """Swap ``A[r, lo[r]:hi[r]]`` with ``B[r, lo[r]:hi[r]]`` for every row, in place."""
     for r in range(A.shape[0]):
