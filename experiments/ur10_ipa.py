@@ -14,11 +14,11 @@ Increasing the Absolute Accuracy of Industrial Robots", IEEE CASE 2021, pp. 468-
 from __future__ import annotations
 
 import argparse
-import shutil
+import json
 import tempfile
 from pathlib import Path
 
-from zrp_ga import app, config
+from zrp_ga import app, config, report
 
 RESULTS = Path(__file__).parent / "results"
 VARIANTS = {"positions": [], "positions, weighted by their standard deviations": ["problem.use_weights=true"],
@@ -38,12 +38,13 @@ def main() -> None:
              "|---|---|---|---|---|---|---|"]  # fmt: skip
     summaries = {}
     for name, over in RUNS.items():
-        s = app.run(config.load(over), root / str(len(summaries)))
-        summaries[name] = s
+        run_dir = root / str(len(summaries))
+        app.run(config.load(over + ["progress=false"]), run_dir)
+        s = summaries[name] = json.loads((run_dir / "summary.json").read_text())
         for part in ("calibration", "validation"):
             e = s["position_error_mm"][part]
             fmt = lambda d: f"{d['mean']:.3f} / {d['rms']:.3f} / {d['max']:.3f}"  # noqa: E731
-            lines.append(f"| {name} | `zrp-ga {' '.join(over)}` | {part} ({Path(s['files'][part]).name}) | "
+            lines.append(f"| {name} | `zrp-ga {' '.join(over)}` | {part} ({Path(s['problem']['files'][part]).name}) | "
                          f"{e['nominal']['poses']} | {fmt(e['nominal'])} | {fmt(e['calibrated'])} | {s['wall_s']:.2f} |")  # fmt: skip
     ratios = []
     for data in VARIANTS:
@@ -56,7 +57,7 @@ def main() -> None:
               "Series C RMS error, GA / LM: " + "; ".join(ratios) + ".", ""]  # fmt: skip
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "ur10_ipa.md").write_text("\n".join(lines))
-    shutil.copy(root / "0" / "pose_errors.png", RESULTS / "ur10_ipa_pose_errors.png")  # GA, positions
+    report.pose_error_figure(root / "0").savefig(RESULTS / "ur10_ipa_pose_errors.png", dpi=150)  # GA, positions
     print("\n".join(lines))
     print(f"runs in {root}")
 

@@ -7,38 +7,53 @@ import pandas as pd
 import pytest
 from hydra.errors import ConfigCompositionException, MissingConfigException
 
-from zrp_ga import app, build, config
-from zrp_ga.records import CONVERGENCE_COLUMNS, WALL_CLOCK_COLUMNS
+from zrp_ga import app, config
+from zrp_ga.callbacks import COLUMNS, WALL_CLOCK_COLUMNS
+from zrp_ga.config import ConfigError
 
 
 def _cfg(*overrides):
     return config.load(overrides)
 
 
+def _run(cfg, path):
+    """Run and return what the run wrote into summary.json."""
+    objective = app.run(cfg, path)
+    summary = json.loads((path / "summary.json").read_text())
+    assert objective == summary["final_cost"]
+    return summary
+
+
+def _zrp_ga(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "zrp_ga.app", *args], capture_output=True, text=True, **kw)
+
+
 def test_default_run_writes_every_file(tmp_path):
-    summary = app.run(_cfg("problem.n_validation=20"), tmp_path)
+    summary = _run(_cfg("problem.n_validation=20"), tmp_path)
     conv = pd.read_csv(tmp_path / "convergence.csv")
-    assert list(conv.columns) == CONVERGENCE_COLUMNS
+    assert list(conv.columns) == COLUMNS
     assert list(conv["gen"]) == list(range(12))  # initial population and 11 generations
     assert conv["best"].iloc[-1] <= conv["best"].iloc[0]
     best = pd.read_csv(tmp_path / "best_params.csv")
     assert list(best["joint"].astype(str)) == [str(i) for i in range(1, 7)] and "true_du0_x" in best
     init = pd.read_csv(tmp_path / "initial_population.csv")
     assert len(init) == 20 and init["cost"].min() == pytest.approx(conv["best"].iloc[0])
-    on_disk = json.loads((tmp_path / "summary.json").read_text())
-    assert on_disk["final_cost"] == pytest.approx(summary["final_cost"]) == pytest.approx(conv["best"].iloc[-1])
-    assert on_disk["seed"] == 0 and on_disk["config"]["crossover"]["name"] == "two_point"
-    assert on_disk["identifiability"]["rank"] == 12  # one pose: 6 pose rows + 6 unit rows
+    assert summary["final_cost"] == pytest.approx(conv["best"].iloc[-1])
+    assert summary["seed"] == 0 and summary["choices"] == {} and summary["config"]["crossover"]["op"]["_target_"].endswith("two_point")
+    assert summary["identifiability"]["rank"] == 12  # one pose: 6 pose rows + 6 unit rows
+    assert summary["robot"] == {"name": "puma560", "joints": 6, "joint_types": "RRRRRR"}
+    assert summary["instance"] == "puma560-1pose-linear-seed0" and summary["warnings"] == []
+    assert json.loads((tmp_path / "status.json").read_text()) == {"status": "done"}
 
 
 def test_same_seed_same_convergence_csv(tmp_path):
-    cfg = _cfg("problem=multipose", "problem.n_validation=10", "population.generations=4", "seed=7")
-    app.run(cfg, tmp_path / "a")
-    app.run(cfg, tmp_path / "b")
+    over = ["problem=multipose", "problem.n_validation=10", "population.generations=4"]
+    app.run(_cfg(*over, "seed=7"), tmp_path / "a")
+    app.run(_cfg(*over, "seed=7"), tmp_path / "b")
     a = pd.read_csv(tmp_path / "a" / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS)
     b = pd.read_csv(tmp_path / "b" / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS)
     pd.testing.assert_frame_equal(a, b)
-    app.run(_cfg("problem=multipose", "problem.n_validation=10", "population.generations=4", "seed=8"), tmp_path / "c")
+    app.run(_cfg(*over, "seed=8"), tmp_path / "c")
     c = pd.read_csv(tmp_path / "c" / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS)
     assert not a.equals(c)
 
@@ -46,32 +61,39 @@ def test_same_seed_same_convergence_csv(tmp_path):
 @pytest.mark.parametrize("algorithm", ["lm", "cmaes"])
 def test_baselines_write_the_same_files(tmp_path, algorithm):
     over = ["problem=multipose", "problem.n_poses=10", "problem.n_validation=10", f"algorithm={algorithm}",
-            "population.generations=20"]
-    summary = app.run(_cfg(*over), tmp_path)
+            "population.generations=20"]  # fmt: skip
+    summary = _run(_cfg(*over), tmp_path)
     conv = pd.read_csv(tmp_path / "convergence.csv")
-    assert list(conv.columns) == CONVERGENCE_COLUMNS and len(conv) > 2
-    assert summary["final_cost"] < 0.8 * summary["nominal_cost"]
+    assert list(conv.columns) == COLUMNS and len(conv) > 2
+    assert summary["final_cost"] < 0.8 * summary["nominal_cost"] and summary["algorithm"] == algorithm
     assert (tmp_path / "best_params.csv").exists() and (tmp_path / "initial_population.csv").exists()
 
 
 def test_lm_finds_the_floor_and_the_ga_with_pinv_meets_it(tmp_path):
     base = ["problem=multipose", "problem.n_poses=15", "problem.n_validation=10"]
-    lm = app.run(_cfg(*base, "algorithm=lm"), tmp_path / "lm")
-    ga = app.run(_cfg(*base, "population.generations=10"), tmp_path / "ga")
+    lm = _run(_cfg(*base, "algorithm=lm"), tmp_path / "lm")
+    ga = _run(_cfg(*base, "population.generations=10"), tmp_path / "ga")
     assert ga["final_cost"] <= 1.01 * lm["final_cost"]
 
 
 @pytest.mark.parametrize(
     "override, message",
-    [("crossover.prob=1.5", r"crossover.prob: probability 1.5 is outside \[0, 1\]"),
+    [("crossover.prob=1.5", r"crossover.prob: must be a probability in \[0, 1\], got 1.5"),
      ("population.mu=0", "population.mu: must be at least 1"),
-     ("refine.share=-0.1", "refine.share"),
-     ("problem.cost=quadratic", "problem.cost: unknown cost 'quadratic'")],
+     ("refine.share=-0.1", r"refine.share: must be a share in \[0, 1\]"),
+     ("problem.n_poses=0", "problem.n_poses: must be at least 1, got 0"),
+     ("problem.position_noise=-1", "problem.position_noise: must be a number >= 0, got -1")],
 )
-def test_bad_settings_stop_before_any_generation(tmp_path, override, message):
-    with pytest.raises(build.ConfigError, match=message):
-        app.run(_cfg(override), tmp_path)
-    assert not (tmp_path / "convergence.csv").exists()
+def test_bad_settings_stop_before_any_work(tmp_path, override, message):
+    with pytest.raises(ConfigError, match=message):
+        app.run(_cfg(override), tmp_path / "run")
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_string_choice_outside_its_enum_fails_at_composition():
+    with pytest.raises(ConfigCompositionException) as info:
+        _cfg("problem.cost=quadratic")
+    assert "Invalid value 'quadratic', expected one of [linear, nonlinear]" in app.one_line(info.value)
 
 
 def test_unknown_operator_fails_at_composition():
@@ -79,43 +101,68 @@ def test_unknown_operator_fails_at_composition():
         _cfg("crossover=teleport")
 
 
-def test_one_pose_warns_with_the_identifiability_report(tmp_path, caplog):
-    app.run(_cfg("problem.n_validation=5", "population.generations=1"), tmp_path)
-    assert "cannot identify every parameter" in caplog.text and "rank 12 of 31" in caplog.text
+def test_one_pose_warns_once_with_one_consistent_rank(tmp_path, caplog):
+    app.run(_cfg("problem.n_validation=5", "population.generations=1"), tmp_path / "a")
+    warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warnings) == 1
+    assert warnings[0].startswith("the calibration poses identify 12 of the 31 parameter combinations the model can identify (36 parameters)")
     caplog.clear()
     app.run(_cfg("problem=multipose", "problem.n_validation=5", "population.generations=1"), tmp_path / "b")
-    assert "cannot identify" not in caplog.text  # 30 poses carry all the model can identify
+    assert "calibration poses identify" not in caplog.text  # 30 poses carry all the model can identify
 
 
-def test_command_line_error_is_one_line(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "crossover.prob=1.5", f"hydra.run.dir={tmp_path}"],
-                          capture_output=True, text=True)
+def test_command_line_error_is_one_line_and_leaves_no_directory(tmp_path):
+    proc = _zrp_ga("crossover.prob=1.5", f"hydra.run.dir={tmp_path / 'run'}")
     assert proc.returncode == 2
-    assert "zrp-ga: error: crossover.prob: probability 1.5 is outside [0, 1]" in proc.stderr
-    assert "Traceback" not in proc.stderr
-
-
-@pytest.mark.parametrize("family", ["inversion", "rotation"])
-def test_configured_segment_operators_cross_blocks_and_block_ones_do_not(family):
-    cfg = _cfg(f"{family}=segment")
-    prob, _ = build.problem(cfg.problem, build.robot(cfg.robot), 0)
-    rng = np.random.default_rng(0)
-    alias = "invert" if family == "inversion" else "rotate"
-    for choice, crosses in (("segment", True), ("block", False)):
-        tb = build.toolbox(_cfg(f"{family}={choice}"), prob, rng)
-        G = np.hstack([np.zeros((500, 18)), np.ones((500, 18))])
-        getattr(tb, alias)(G)
-        assert bool(np.any(G[:, :18] == 1)) is crosses
+    assert proc.stderr.strip().splitlines() == ["zrp-ga: error: crossover.prob: must be a probability in [0, 1], got 1.5"]
+    assert not (tmp_path / "run").exists()
 
 
 def test_the_optimiser_never_starts_from_the_truth(tmp_path):
     app.run(_cfg("problem.n_validation=5", "population.generations=1"), tmp_path)
     init = pd.read_csv(tmp_path / "initial_population.csv").drop(columns=["individual", "cost"]).to_numpy()
-    cfg = _cfg()
-    _, sim = build.problem(cfg.problem, build.robot(cfg.robot), 0)
-    assert np.min(np.abs(init[:, :, None] - sim.true_de[None, None, :])) > 1e-12  # no gene equals a true error
+    truth = app.prepare(_cfg(), tmp_path / "other").task.truth
+    assert np.min(np.abs(init[:, :, None] - truth[None, None, :])) > 1e-12  # no gene equals a true error
 
 
 def test_unknown_operator_parameter_is_refused_by_name(tmp_path):
-    with pytest.raises(build.ConfigError, match=r"crossover.op: .*unknown parameter 'etaa' for zrp_ga.operators.crossover.sbx \(takes: low, up, eta, indpb\)"):
+    with pytest.raises(ValueError, match=r"crossover.op: unknown parameter 'etaa' for zrp_ga.operators.crossover.sbx \(takes: low, up, eta, indpb\)"):
         app.run(_cfg("crossover=sbx", "+crossover.op.etaa=3"), tmp_path)
+
+
+# --- Hydra's own flags ----------------------------------------------------------------------------
+def test_cfg_job_prints_the_config_without_running(tmp_path):
+    for args in (["--cfg", "job"], ["-c", "job"], ["--cfg", "job", "--resolve"]):
+        proc = _zrp_ga(*args, "crossover=sbx", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        cfg = __import__("yaml").safe_load(proc.stdout)
+        assert cfg["crossover"]["op"]["_target_"] == "zrp_ga.operators.crossover.sbx"
+        assert cfg["algorithm"]["crossover"] == (cfg["crossover"] if "--resolve" in args else "${crossover}")
+    assert not (tmp_path / "outputs").exists()
+
+
+def test_info_defaults_and_help(tmp_path):
+    proc = _zrp_ga("--info", "defaults", cwd=tmp_path)
+    assert proc.returncode == 0 and "problem/paper" in proc.stdout and "algorithm/ga" in proc.stdout
+    proc = _zrp_ga("--help", cwd=tmp_path)
+    assert proc.returncode == 0
+    assert proc.stdout.startswith("zrp-ga: calibrate the kinematic parameters")
+    for group in ("crossover: blend, none, one_point, sbx, two_point, uniform", "robot: file, puma560, stanford, ur10"):
+        assert group in proc.stdout
+    assert "convergence.csv" in proc.stdout and "app" not in proc.stdout.split()
+
+
+def test_a_users_own_config_directory(tmp_path):
+    """A robot option of the user's own, from --config-dir or from hydra.searchpath."""
+    from zrp_ga import robots
+
+    arm = tmp_path / "myarm.yaml"
+    robots.get("ur10").replace(name="myarm").to_yaml(arm)
+    (tmp_path / "mine" / "robot").mkdir(parents=True)
+    (tmp_path / "mine" / "robot" / "myarm.yaml").write_text(f"name: null\nfile: {arm}\n")
+    common = ["problem.n_validation=5", "population.generations=1", "progress=false"]
+    for way in (["--config-dir", str(tmp_path / "mine")], [f"hydra.searchpath=[file://{tmp_path / 'mine'}]"]):
+        run_dir = tmp_path / f"run{len(way)}"
+        proc = _zrp_ga(*way, "robot=myarm", *common, f"hydra.run.dir={run_dir}")
+        assert proc.returncode == 0, proc.stderr
+        assert json.loads((run_dir / "summary.json").read_text())["robot"]["name"] == "myarm"

@@ -2,6 +2,7 @@
 
 import io
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
@@ -11,9 +12,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from zrp_ga import app, build, config, records
-from zrp_ga.callbacks import read_manifest
-from zrp_ga.records import WALL_CLOCK_COLUMNS
+from zrp_ga import app, callbacks, config, robots
+from zrp_ga.callbacks import WALL_CLOCK_COLUMNS
+from zrp_ga.config import ConfigError
+from zrp_ga.hydra_callbacks import read_manifest
 
 GROUPS = ["robot", "problem", "algorithm", "population", "selection", "crossover", "mutation", "inversion",
           "rotation", "refine", "experiment"]
@@ -34,14 +36,14 @@ def test_every_option_of_every_group_composes_and_builds(group, tmp_path):
         over = [f"{group}={option}"]
         if option == "file":
             path = tmp_path / "arm.yaml"
-            build.robots.get("ur10").to_yaml(path)
+            robots.get("ur10").to_yaml(path)
             over.append(f"robot.file={path}")
+        if option == "measured":
+            over += ["robot=ur10", "problem.format=ur10_ipa", "problem.calibration_file=pkg:ur10_ipa/series_b_joint_configurations.csv"]
         cfg = config.load(over)
-        arm = build.robot(cfg.robot, cfg.problem.get("robot"))
-        prob, _ = build.problem(cfg.problem, arm, 0)
-        settings = build.settings(cfg)
-        toolbox = build.toolbox(cfg, prob, np.random.default_rng(0))
-        assert settings.mu >= 1 and hasattr(toolbox, "select") and prob.layout.size >= 6 * arm.n
+        p = app.prepare(cfg, tmp_path / "run")
+        p.algorithm.setup(p.task.problem, np.random.default_rng(0))
+        assert hasattr(p.algorithm.toolbox, "evaluate") and p.task.problem.layout.size >= 6 * p.task.robot.n
 
 
 @pytest.mark.parametrize("preset", ["local"])
@@ -69,9 +71,9 @@ def _zrp_ga(*args, **kw):
     "override, expected",
     [
         ("crossover=teleport", "Could not find 'crossover/teleport'; available options in 'crossover': blend, none"),
-        ("crossover.prob=1.5", "crossover.prob: probability 1.5 is outside [0, 1]"),
+        ("crossover.prob=1.5", "crossover.prob: must be a probability in [0, 1], got 1.5"),
         ("population.mu=0", "population.mu: must be at least 1, got 0"),
-        ("problem.n_pose=30", "Key 'n_pose' not in 'ProblemConf' (key: problem.n_pose)"),
+        ("problem.n_pose=30", "Key 'n_pose' not in 'SimulatedConf' (key: problem.n_pose)"),
     ],
 )
 def test_bad_config_is_one_line_naming_the_key(tmp_path, override, expected):
@@ -79,14 +81,14 @@ def test_bad_config_is_one_line_naming_the_key(tmp_path, override, expected):
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("zrp-ga: error: ") and expected in lines[0]
-    assert not (tmp_path / "run" / "convergence.csv").exists()
+    assert not (tmp_path / "run").exists()
 
 
 def test_a_run_never_overwrites_another(tmp_path):
     cfg = config.load(["problem.n_validation=5", "population.generations=2"])
     app.run(cfg, tmp_path)
     before = (tmp_path / "convergence.csv").read_text()
-    with pytest.raises(build.ConfigError, match="already holds a run"):
+    with pytest.raises(ConfigError, match="already holds a run"):
         app.run(cfg, tmp_path)
     assert (tmp_path / "convergence.csv").read_text() == before
 
@@ -102,21 +104,21 @@ def _csv(path):
 def test_interrupted_run_resumes_to_the_same_csv(tmp_path, monkeypatch):
     cfg = config.load(FAST + ["population.generations=40", "checkpoint_every=7"])
     app.run(cfg, tmp_path / "whole")
-    write = records.ConvergenceLog.write
+    write = callbacks.ConvergenceLog.on_generation
 
-    def ctrl_c_after_gen_23(self, row):
-        write(self, row)
+    def ctrl_c_after_gen_23(self, algorithm, row):
+        write(self, algorithm, row)
         if row["gen"] == 23:
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(records.ConvergenceLog, "write", ctrl_c_after_gen_23)
+    monkeypatch.setattr(callbacks.ConvergenceLog, "on_generation", ctrl_c_after_gen_23)
     with pytest.raises(KeyboardInterrupt):
         app.run(cfg, tmp_path / "cut")
-    monkeypatch.setattr(records.ConvergenceLog, "write", write)
+    monkeypatch.setattr(callbacks.ConvergenceLog, "on_generation", write)
     assert _csv(tmp_path / "cut")["gen"].max() == 23  # complete up to the last finished generation
-    summary = app.run(config.load([f"resume={tmp_path / 'cut'}"]), tmp_path / "ignored")
+    final = app.run(config.load([f"resume={tmp_path / 'cut'}"]), tmp_path / "ignored")
     pd.testing.assert_frame_equal(_csv(tmp_path / "cut"), _csv(tmp_path / "whole"))
-    assert summary["final_cost"] == pd.read_csv(tmp_path / "whole" / "convergence.csv")["best"].iloc[-1]
+    assert final == pd.read_csv(tmp_path / "whole" / "convergence.csv")["best"].iloc[-1]
     assert not (tmp_path / "ignored").exists()
 
 
@@ -166,12 +168,31 @@ def test_joblib_sweep_runs_jobs_in_parallel_processes(tmp_path):
 
 
 def test_progress_line_shows_generation_evaluations_best_and_time_left():
+    class Quarter:  # an algorithm a quarter through its budget, not done
+        def fraction_done(self):
+            return 0.25
+
+        def has_next(self):
+            return True
+
     out = io.StringIO()
-    p = app.Progress(generations=100, max_evals=None, stream=out)
-    p({"gen": 25, "nevals": 520, "best": 0.0123, "val_rms": 1.5, "wall_s": 2.0})
+    callbacks.Progress(stream=out).on_generation(Quarter(), {"gen": 25, "nevals": 520, "best": 0.0123, "val_rms_mm": 1.5, "wall_s": 2.0})
     line = out.getvalue()
-    assert "gen    25" in line and "evals      520" in line and "best 0.0123" in line
-    assert "time left    6.0 s" in line  # a quarter done in 2 s: 6 s to go
+    assert line == "gen    25  evals      520  best 0.0123  val_rms 1.5 mm  time left    6.0 s\n"  # 6 s to go
+
+
+def test_progress_line_on_a_terminal_is_rewritten_in_place_and_ends_once():
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    out = Tty()
+    cfg = config.load(["problem.n_validation=5", "population.generations=3"])
+    p = app.prepare(cfg, Path("/nonexistent"))
+    p.algorithm.run(p.task.problem, np.random.default_rng(0), [callbacks.Timing(), callbacks.Progress(stream=out, every_s=0)])
+    text = out.getvalue()
+    assert text.count("\n") == 1 and text.endswith("\n") and text.count("\r") == 4  # generations 0-3, one line
+    assert text.count("\x1b[K") == 4  # each rewrite clears what a longer line left
 
 
 @pytest.mark.slow

@@ -9,9 +9,11 @@ import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
 
-from zrp_ga import app, build, config, kinematics, measurements, registration, robots
-from zrp_ga.problem import Layout, random_joints, simulate
+from zrp_ga import app, config, kinematics, measurements, registration, robots
+from zrp_ga.layout import Layout
+from zrp_ga.problems.measured import data_path
 from zrp_ga.robot import ZRPRobot
+from zrp_ga.simulation import random_joints, simulate
 
 NOISE = 5e-5  # m, standard deviation per axis of the simulated tracker
 TOOL = np.array([0.012, -0.02, 0.105])
@@ -67,10 +69,11 @@ def test_calibration_in_the_instruments_frame_and_the_exported_model(tmp_path, r
     q_cal, q_val = random_joints(arm, 200, rng), random_joints(arm, 100, rng)
     _write(tmp_path / "cal.csv", q_cal, kinematics.forward(world, q_cal)[1], rng)
     p_val = _write(tmp_path / "val.csv", q_val, kinematics.forward(world, q_val)[1], rng)
-    cfg = config.load(["problem=ur10_ipa", "problem.format=zrp", "problem.length_unit=mm",
+    cfg = config.load(["problem=measured", "robot=ur10", "problem.length_unit=mm",
                        f"problem.calibration_file={tmp_path / 'cal.csv'}", f"problem.validation_file={tmp_path / 'val.csv'}",
                        "population.generations=15"])  # fmt: skip
-    s = app.run(cfg, tmp_path / "run")
+    app.run(cfg, tmp_path / "run")
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())
     err = s["position_error_mm"]["validation"]
     assert err["nominal"]["rms"] > 1.0  # the kinematic errors show after registration alone
     assert err["calibrated"]["rms"] < 1.5 * NOISE * np.sqrt(3) * 1e3  # calibrated: down to the noise
@@ -79,25 +82,28 @@ def test_calibration_in_the_instruments_frame_and_the_exported_model(tmp_path, r
     rms = np.sqrt(np.mean(np.sum((p - p_val) ** 2, axis=1))) * 1e3
     assert rms == pytest.approx(err["calibrated"]["rms"], rel=1e-6)
     assert json.loads((tmp_path / "run" / "registration.json").read_text())["rms_mm"] > 1.0
-    assert (tmp_path / "run" / "pose_errors.png").stat().st_size > 10_000
+    poses = pd.read_csv(tmp_path / "run" / "pose_errors.csv")
+    assert list(poses.columns) == ["set", "line", "nominal_mm", "calibrated_mm"] and len(poses) == 300
+    val = poses[poses["set"] == "validation"]
+    assert np.sqrt(np.mean(val["calibrated_mm"] ** 2)) == pytest.approx(err["calibrated"]["rms"], rel=1e-12)
+    assert list(val["line"]) == list(range(2, 102))  # the file's lines, header = line 1
 
 
 def test_validation_split_by_fraction(tmp_path, rng):
     arm, world, _, _ = _foreign(rng)
     q = random_joints(arm, 120, rng)
     _write(tmp_path / "all.csv", q, kinematics.forward(world, q)[1], rng)
-    cfg = config.load(["problem=ur10_ipa", "problem.format=zrp", "problem.length_unit=mm",
-                       f"problem.calibration_file={tmp_path / 'all.csv'}", "problem.validation_file=null",
-                       "problem.validation_fraction=0.25", "algorithm=lm"])  # fmt: skip
-    prob, measured = build.problem(cfg.problem, robots.get("ur10"), 0)
-    assert prob.calibration.M == 90 and prob.validation.M == 30
-    assert sorted(np.r_[measured.calibration.lines, measured.validation.lines]) == list(range(2, 122))
+    cfg = config.load(["problem=measured", "robot=ur10", "problem.length_unit=mm",
+                       f"problem.calibration_file={tmp_path / 'all.csv'}", "problem.validation_fraction=0.25", "algorithm=lm"])  # fmt: skip
+    task = app.prepare(cfg, tmp_path / "run").task
+    assert task.problem.data.M == 90 and task.judge.validation.M == 30
+    assert sorted(np.r_[task.sets["calibration"].lines, task.sets["validation"].lines]) == list(range(2, 122))
 
 
 def test_the_ur10_files_ship_and_read(tmp_path):
     fmt = measurements.UR10_IPA
-    b = measurements.read(build.data_path("pkg:ur10_ipa/series_b_joint_configurations.csv"), fmt, 6)
-    c = measurements.read(build.data_path("pkg:ur10_ipa/series_c_random_poses.csv"), fmt, 6)
+    b = measurements.read(data_path("pkg:ur10_ipa/series_b_joint_configurations.csv"), fmt, 6)
+    c = measurements.read(data_path("pkg:ur10_ipa/series_c_random_poses.csv"), fmt, 6)
     assert b.q.shape == (1495, 6) and c.q.shape == (2773, 6)
     np.testing.assert_allclose(b.p[0], [0.38376294, -3.2408734, 0.20193157])  # line 2 of the file, mm -> m
     assert b.std is not None and b.R is not None
@@ -135,10 +141,10 @@ def test_bad_rows_are_dropped_only_when_asked(tmp_path, caplog):
 def test_bad_file_from_the_command_line_is_one_line(tmp_path):
     path = tmp_path / "bad.csv"
     path.write_text(GOOD.replace("4,5,6", "4,five,6"))
-    proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem=ur10_ipa", "problem.format=zrp",
-                           f"problem.calibration_file={path}", "problem.validation_file=null",
-                           f"hydra.run.dir={tmp_path / 'run'}"], capture_output=True, text=True)  # fmt: skip
-    assert proc.returncode == 2
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem=measured", "robot=ur10",
+                           f"problem.calibration_file={path}", f"hydra.run.dir={tmp_path / 'run'}"],
+                          capture_output=True, text=True)  # fmt: skip
+    assert proc.returncode == 2 and not (tmp_path / "run").exists()
     assert proc.stderr.strip().splitlines() == [
         f"zrp-ga: error: {path}, line 3, column 'y': 'five' is not a finite number; set problem.drop_bad_rows=true to drop such rows"
     ]

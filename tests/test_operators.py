@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from zrp_ga.operators import crossover, inversion, mutation, repair, rotation, selection
+from zrp_ga.operators import crossover, inversion, mutation, rotation, selection
+from zrp_ga.operators.repair import repair
 
 K = 36
 LOW, UP = -np.ones(K), np.ones(K)
@@ -104,7 +105,7 @@ def test_repair_clip_and_reflect():
     np.testing.assert_allclose(repair(np.array([-0.2, 0.5, 1.3]), low, up, "clip"), [0, 0.5, 1])
     np.testing.assert_allclose(repair(np.array([-0.2, 0.5, 1.3]), low, up, "reflect"), [0.2, 0.5, 0.7])
     np.testing.assert_allclose(repair(np.array([2.25, -1.5, 3.0]), low, up, "reflect"), [0.25, 0.5, 1.0])
-    with pytest.raises(ValueError, match="repair: unknown method 'wrap'"):
+    with pytest.raises(ValueError, match="'wrap' is not a valid Repair"):
         repair(np.zeros(3), low, up, "wrap")
 
 

@@ -4,12 +4,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_every_package_and_config_group_is_listed_in_pyproject():
-    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+def test_every_code_package_is_listed_in_pyproject_and_the_configs_ship_whole():
+    setup = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
     code = {".".join(p.relative_to(ROOT).parent.parts) for p in (ROOT / "zrp_ga").rglob("__init__.py")}
-    groups = {"zrp_ga.conf." + ".".join(d.relative_to(ROOT / "conf").parts)
-              for d in (ROOT / "conf").rglob("*") if d.is_dir() and d.name != "__pycache__"}
-    assert code | groups | {"zrp_ga.conf"} == listed
+    assert code | {"zrp_ga.conf"} == set(setup["packages"])
+    assert setup["package-data"]["zrp_ga.conf"] == ["**/*.yaml"]
 
 
 def test_compiled_code_is_never_cached_inside_the_package():

@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from zrp_ga import report
-from zrp_ga.callbacks import MANIFEST, read_manifest
+from zrp_ga.hydra_callbacks import MANIFEST, read_manifest
 
 CROSSOVERS = ["blend", "sbx", "two_point"]
 
@@ -34,7 +34,7 @@ def _finals(sweep):
     out = {c: [] for c in CROSSOVERS}
     for job in read_manifest(sweep).itertuples():
         summary = json.loads((sweep / str(job.dir) / "summary.json").read_text())
-        out[summary["config"]["crossover"]["name"]].append(summary["final_cost"])
+        out[summary["choices"]["crossover"]].append(summary["final_cost"])
     return {c: np.array(v) for c, v in out.items()}
 
 
@@ -62,7 +62,7 @@ def test_every_file_is_written(sweep, tmp_path):
         assert (out / f"{fig}.png").stat().st_size > 10_000 and (out / f"{fig}.pdf").exists(), fig
     tidy = pd.read_csv(out / "tidy.csv")
     assert len(tidy) == 9 * 7 and set(tidy["crossover"]) == set(CROSSOVERS)  # 9 runs x (gen 0..6)
-    assert {"run", "configuration", "gen", "nevals", "best", "val_rms"} <= set(tidy.columns)
+    assert {"run", "configuration", "gen", "nevals", "best", "val_rms_mm"} <= set(tidy.columns)
 
 
 def test_summary_and_statistics_match_hand_computations(sweep, tmp_path):

@@ -1,10 +1,26 @@
 """zrp_ga: genetic-algorithm calibration of serial robot kinematics on the Zero Reference
-Position model. Modules: so3, robot, robots, kinematics, error_model, problem, operators, ga,
-baselines, records, config, build, callbacks, app (see the README)."""
+Position model. See the README for the layout of the package; :func:`calibrate` is the entry
+point for scripts and notebooks."""
 
-from importlib import metadata
+from __future__ import annotations
 
-try:
-    __version__ = metadata.version("zrp_ga")
-except metadata.PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0+unknown"
+from typing import Any
+
+
+def __getattr__(name: str) -> Any:
+    """``__version__`` and ``calibrate`` on first use: importing the package stays cheap."""
+    if name == "__version__":
+        from importlib import metadata
+
+        try:
+            return metadata.version("zrp_ga")
+        except metadata.PackageNotFoundError:  # a source tree that is not installed
+            return "0+unknown"
+    if name == "calibrate":
+        from zrp_ga.api import calibrate
+
+        return calibrate
+    raise AttributeError(f"module 'zrp_ga' has no attribute {name!r}")
+
+
+__all__ = ["calibrate"]

@@ -1,271 +1,207 @@
 """``zrp-ga``: the Hydra app. ``zrp-ga`` alone runs the paper's case study; any setting can be
-overridden (``zrp-ga problem=multipose seed=3``) or swept (``zrp-ga -m crossover=glob(*)``).
+overridden (``zrp-ga problem=multipose seed=3``), swept (``zrp-ga -m crossover=glob(*)``) or
+inspected with Hydra's own flags (``--cfg job``, ``--info defaults``, ``--help``).
 
-:func:`run` is the typed, testable body; :func:`main` is the thin Hydra entry point and
-:func:`cli` the console script, which turns every configuration error into one line.
+:func:`prepare` checks a config and builds its objects (robot, problem, optimiser) from their
+``_target_``; :func:`run` optimises, writes the run's files and returns the objective, so that
+Hydra's sweepers can optimise it; :func:`main` is the ``@hydra.main`` entry point and :func:`cli`
+the console script, which turns every error in the user's input into one line and exit code 2.
+Heavy modules are imported where they are used, so that ``--help`` starts fast.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
-import pickle
 import random
 import sys
-import time
 from pathlib import Path
+from typing import Any
 
 import hydra
-import numpy as np
-from hydra.core.hydra_config import HydraConfig
-from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
-from zrp_ga import baselines, build, config, ga, records
+from zrp_ga import config
+from zrp_ga.config import ConfigError
 
 log = logging.getLogger("zrp_ga")
-CHECKPOINT = "checkpoint.pkl"
 config.register()
+RUN_FILES = ("convergence.csv", "summary.json")
 
 
-class Progress:
-    """A progress line: generation, evaluations, best cost and time left, at most twice a second
-    (rewritten in place on a terminal)."""
+@dataclasses.dataclass
+class Prepared:
+    """A checked config and what it builds."""
 
-    def __init__(self, generations: int | None, max_evals: int | None, stream=sys.stderr):
-        self.generations, self.max_evals, self.stream = generations, max_evals, stream
-        self.tty = stream.isatty()
-        self._last = 0.0
-
-    def __call__(self, row: dict, final: bool = False) -> None:
-        now = time.perf_counter()
-        if not final and now - self._last < 0.5:
-            return
-        self._last = now
-        done = max(row["gen"] / self.generations if self.generations else 0.0,
-                   row["nevals"] / self.max_evals if self.max_evals else 0.0)  # fmt: skip
-        left = row["wall_s"] * (1 - done) / done if 0 < done <= 1 else None
-        text = (f"gen {row['gen']:5d}  evals {row['nevals']:8d}  best {row['best']:.6g}  "
-                f"val_rms {row.get('val_rms', float('nan')):.4g} mm")  # fmt: skip
-        if left is not None:
-            text += f"  time left {left:6.1f} s"
-        if self.tty:
-            self.stream.write("\r" + text + ("\n" if final else ""))
-        else:
-            self.stream.write(text + "\n")
-        self.stream.flush()
+    cfg: DictConfig
+    task: Any  # zrp_ga.problems.Task
+    algorithm: Any  # zrp_ga.algorithms.Algorithm
+    state: dict | None  # a checkpoint's state when resuming
+    out: Path
 
 
-def _save(path: Path, state: dict) -> None:
-    """Write a checkpoint atomically: a kill while writing leaves the previous one."""
-    tmp = path.with_suffix(".tmp")
-    with open(tmp, "wb") as f:
-        pickle.dump(state, f, protocol=pickle.HIGHEST_PROTOCOL)
-    os.replace(tmp, path)
+_prepared: tuple[str, Prepared] | None = None  # what the Hydra callback built for the run about to start
 
 
-def run(cfg: DictConfig, out_dir: str | Path, progress: Progress | None = None) -> dict:
-    """Run one calibration as configured, write its files into ``out_dir``, return the summary.
+def _task_config(cfg: DictConfig) -> DictConfig:
+    return OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]) if "hydra" in cfg else cfg
 
-    With ``cfg.resume`` set, the run in that directory continues from its checkpoint, with the
-    config it was started with. A directory that already holds a run is never overwritten.
-    """
+
+def prepare(cfg: DictConfig, out: Path) -> Prepared:
+    """Check ``cfg`` and build its objects, before any work and before ``out`` is created; with
+    ``resume``, the checkpoint's config instead. Every error names what is wrong in one line."""
+    global _prepared
+    cfg = _task_config(cfg)
+    key = OmegaConf.to_yaml(cfg) + str(out)
+    if _prepared is not None and _prepared[0] == key:
+        return _prepared[1]
     state = None
     if cfg.get("resume"):
-        out = Path(cfg.resume).expanduser()
-        if not (out / CHECKPOINT).exists():
-            raise build.ConfigError(f"resume: no {CHECKPOINT} in {out}")
-        with open(out / CHECKPOINT, "rb") as f:
-            state = pickle.load(f)
-        cfg = OmegaConf.create(state["config"])
-        log.info("continuing %s after generation %d", out, state["gen"])
-    else:
-        out = Path(out_dir)
-        if (out / "convergence.csv").exists():
-            raise build.ConfigError(
-                f"output directory {out} already holds a run (convergence.csv); "
-                f"choose another hydra.run.dir, or continue it with resume={out}"
-            )
-    out.mkdir(parents=True, exist_ok=True)
+        out, state, cfg = _resume(cfg)
+    elif any((out / f).exists() for f in RUN_FILES):
+        raise ConfigError(f"output directory {out} already holds a run; choose another hydra.run.dir, "
+                          f"or continue it with resume={out}")  # fmt: skip
+    if cfg.checkpoint_every < 0:
+        raise ConfigError(f"checkpoint_every: must be >= 0, got {cfg.checkpoint_every}")
+    robot = config.instantiate(cfg.robot, "robot")
+    task = config.instantiate(cfg.problem, "problem", robot=robot, seed=int(cfg.seed))
+    algorithm = config.instantiate(cfg.algorithm, "algorithm")
+    if state is not None and not algorithm.checkpointable:
+        raise ConfigError(f"resume: {type(algorithm).__name__} runs keep no checkpoints")
+    prepared = Prepared(cfg, task, algorithm, state, out)
+    _prepared = (key, prepared)
+    return prepared
+
+
+def _resume(cfg: DictConfig) -> tuple[Path, dict, DictConfig]:
+    """The run directory, checkpoint state and config of ``resume=DIR``; the other settings of
+    the command line are refused (the run continues with its own)."""
+    from zrp_ga import checkpoint
+
+    out = Path(cfg.resume).expanduser()
+    if not out.is_dir():
+        raise ConfigError(f"resume: {out} is not a run directory")
+    others = _other_overrides()
+    if others:
+        raise ConfigError(f"resume: a run continues with its own config; drop {' '.join(others)} "
+                          "(or start a new run with them)")  # fmt: skip
+    state = checkpoint.load(out / checkpoint.NAME)
+    return out, state, OmegaConf.create(state.pop("config"))
+
+
+def _other_overrides() -> list[str]:
+    """The command line's settings other than resume, progress and Hydra's own."""
+    from hydra.core.hydra_config import HydraConfig
+
+    if not HydraConfig.initialized():
+        return []
+    return [o for o in HydraConfig.get().overrides.task if not o.lstrip("+~").startswith(("resume=", "progress=", "hydra."))]
+
+
+def run(cfg: DictConfig, out_dir: str | Path, progress: bool | None = None) -> float:
+    """Run one calibration as configured, write its files into ``out_dir`` (or, resuming, the
+    run's own directory) and return the objective: the final cost. ``progress``: show the
+    progress line (default: ``cfg.progress``)."""
+    from zrp_ga import records
+
+    global _prepared
+    p = prepare(cfg, Path(out_dir))
+    _prepared = None
+    p.out.mkdir(parents=True, exist_ok=True)
+    records.write_json(p.out / "status.json", {"status": "running"})
+    try:
+        _, written = execute(p, p.out, p.cfg.progress if progress is None else progress)
+    except BaseException as exc:  # Ctrl-C or a crash: say so where the report will look
+        status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+        records.write_json(p.out / "status.json", {"status": status, "error": repr(exc)})
+        raise
+    records.write_json(p.out / "status.json", {"status": "done"})
+    return float(written["final_cost"])
+
+
+def execute(p: Prepared, out: Path | None, progress: bool) -> tuple[Any, dict]:
+    """Seed, optimise with the callbacks, summarise; with ``out``, write the run's files there
+    (a convergence log and checkpoints as it goes, the rest at the end). Returns the result and
+    the summary."""
+    import numpy as np
+    from threadpoolctl import threadpool_limits
+
+    from zrp_ga import callbacks, checkpoint, summary
+
+    cfg, task = p.cfg, p.task
     seed = int(cfg.seed)
-    random.seed(seed)  # DEAP's own code draws from `random`
+    random.seed(seed)  # DEAP's own operators draw from `random`
     np.random.seed(seed % 2**32)
-    rng = np.random.default_rng([seed, 0])  # the optimiser's stream; the problem draws from [seed, 1]
-    name = cfg.algorithm.name
-    if name not in ("ga", "lm", "cmaes"):
-        raise build.ConfigError(f"algorithm.name: unknown algorithm {name!r}; known: ga, lm, cmaes")
-    if cfg.get("checkpoint_every", 0) < 0:
-        raise build.ConfigError(f"checkpoint_every: must be >= 0, got {cfg.checkpoint_every}")
-    arm = build.robot(cfg.robot, cfg.problem.get("robot"))
-    problem, extra = build.problem(cfg.problem, arm, seed)
-    settings = build.settings(cfg) if name == "ga" else None
-    toolbox = build.toolbox(cfg, problem, rng) if name == "ga" else None
-    report, model_rank = problem.identifiability(), problem.model_rank()
-    if report.rank < model_rank and state is None:
-        log.warning(
-            "the calibration data cannot identify every parameter the model can (rank %d of %d; "
-            "more poses would help):\n%s", report.rank, model_rank, report,
-        )  # fmt: skip
-    zero = np.zeros((1, problem.layout.size))
-    nominal_cost = float(problem.costs(zero)[0])
-    val_before = [float(v[0]) for v in problem.validation_error(zero)]
-    records.write_json(out / "status.json", {"status": "running"})
-
-    t_start = time.perf_counter()
-    resume_at = state["gen"] if state is not None else None
-    last_row: dict = {}
-    resolved = OmegaConf.to_container(cfg, resolve=True)
-    with records.ConvergenceLog(out / "convergence.csv", keep_until_gen=resume_at) as conv:
-        if state is not None:
-            state["logbook"] = conv.logbook()
-
-        def on_generation(row: dict, best: np.ndarray, best_cost: float) -> None:
-            rms, vmax = problem.validation_error(best)
-            row.update(val_rms=rms[0], val_max=vmax[0], param_err=problem.param_error(best)[0])
-            conv.write(row)
-            last_row.update(row)
-            log.debug("gen %d evals %d best %.6g val_rms %.4g mm", row["gen"], row["nevals"], row["best"], rms[0])
-            if progress is not None:
-                progress(row)
-
-        def checkpoint(ga_state: dict) -> None:
-            # Without the logbook: convergence.csv is the log, and pickling the whole logbook at
-            # every checkpoint made long runs quadratic (3000 generations: 5.6 s -> 17.5 s).
-            state = {k: v for k, v in ga_state.items() if k != "logbook"}
-            _save(out / CHECKPOINT, {**state, "config": resolved})
-
-        if name == "ga":
-            every = int(cfg.get("checkpoint_every", 0))
-            try:
-                result = ga.evolve(problem, toolbox, settings, rng, on_generation, checkpoint, every, state)
-            except BaseException as exc:  # Ctrl-C or a crash: say so where the report will look
-                status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
-                records.write_json(out / "status.json", {"status": status, "error": repr(exc)})
-                raise
-        elif state is not None:
-            raise build.ConfigError("resume: only GA runs keep checkpoints")
-        elif name == "lm":
-            result = baselines.lm(problem, cfg.algorithm.get("max_evals"), on_generation)
-        else:
-            result = baselines.cmaes(
-                problem, cfg.population.lambda_, rng, cfg.population.generations, cfg.population.max_evals,
-                cfg.algorithm.sigma0, on_generation,
-            )  # fmt: skip
-    wall = time.perf_counter() - t_start + (state["wall_s"] if state is not None else 0.0)
-    if progress is not None and last_row:
-        progress({**last_row, "wall_s": wall}, final=True)
-
-    truth = problem.true_de
-    if problem.cost == "nonlinear":  # the linear cost has no exact null directions to remove
-        result.best = problem.canonical(result.best)
-        truth = None if truth is None else problem.canonical(truth)
-    records.params_by_joint(problem, result.best, truth).to_csv(out / "best_params.csv", index=False)
-    records.population_table(problem, result.initial_genes, result.initial_costs).to_csv(
-        out / "initial_population.csv", index=False
-    )
-    initial_best = float(np.nanmin(np.where(np.isfinite(result.initial_costs), result.initial_costs, np.nan)))
-    val_after = [float(v[0]) for v in problem.validation_error(result.best)]
-    summary = {
-        "algorithm": name,
-        "seed": seed,
-        "final_cost": result.best_cost,
-        "initial_cost": initial_best,
-        "nominal_cost": nominal_cost,
-        "final_over_initial": result.best_cost / initial_best,
-        "nevals": result.nevals,
-        "stop_reason": result.stop_reason,
-        "wall_s": wall,
-        "validation_rms_mm": {"nominal": val_before[0], "calibrated": val_after[0]},
-        "validation_max_mm": {"nominal": val_before[1], "calibrated": val_after[1]},
-        "param_err": {"nominal": float(problem.param_error(zero)[0]), "calibrated": float(problem.param_error(result.best)[0])},
-        "identifiability": {"rank": report.rank, "model_rank": model_rank, "n_params": report.n_params,
-                            "condition_number": report.condition_number, "unidentifiable": report.null_directions},
-        "best_genome": dict(zip(problem.layout.names, result.best.tolist())),
-        "config": resolved,
-        "versions": records.versions(),
-    }  # fmt: skip
-    if isinstance(extra, build.Measured):
-        summary.update(measured_outputs(problem, extra, result.best, out))
-    records.write_json(out / "summary.json", summary)
-    records.write_json(out / "status.json", {"status": "done"})
-    return summary
-
-
-def measured_outputs(problem, measured: build.Measured, best: np.ndarray, out: Path) -> dict:
-    """For measured data: the registration, the calibrated model in the instrument's frame (a
-    ZRPRobot YAML that ``from_yaml`` and ``forward`` load back), per-pose errors and their plot."""
-    from zrp_ga import report  # matplotlib only where it is needed
-
-    records.write_json(out / "registration.json", measured.registration.to_dict())
-    robot = problem.layout.robot(problem.nominal, best, name=f"{problem.nominal.name} calibrated")
-    robot.to_yaml(out / "calibrated_robot.yaml")
-    sets = {"calibration": problem.calibration}
-    if problem.validation is not None:
-        sets["validation"] = problem.validation
-    errors = {k: (problem.position_errors(np.zeros_like(best), m), problem.position_errors(best, m)) for k, m in sets.items()}
-    report.plot_pose_errors(errors, out)
-
-    def stats(e: np.ndarray) -> dict:
-        return {"mean": float(e.mean()), "rms": float(np.sqrt(np.mean(e**2))), "max": float(e.max()), "poses": len(e)}
-
-    return {
-        "registration": measured.registration.to_dict(),
-        "position_error_mm": {k: {"nominal": stats(b), "calibrated": stats(a)} for k, (b, a) in errors.items()},
-        "files": {"calibration": measured.calibration.source,
-                  "validation": measured.validation.source if measured.validation is not None else None},
-    }  # fmt: skip
+    rng = np.random.default_rng([seed, 0])  # the optimiser's stream; problems draw from [seed, 1] and up
+    resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    diagnostics = summary.diagnostics(task, first=p.state is None)
+    cbs = [callbacks.Timing(), callbacks.Validation(task.judge)]
+    if out is not None:
+        cbs.append(callbacks.ConvergenceLog(out / callbacks.CONVERGENCE, None if p.state is None else int(p.state["gen"])))
+        if p.algorithm.checkpointable and cfg.checkpoint_every:
+            cbs.append(callbacks.Checkpoint(out / checkpoint.NAME, int(cfg.checkpoint_every), resolved))
+    if progress:
+        cbs.append(callbacks.Progress())
+    with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread: 50x faster on a busy 2-core machine
+        result = p.algorithm.run(task.problem, rng, cbs, p.state)
+    written, x = summary.build(task, result, cfg, resolved, diagnostics, p.algorithm.elapsed())
+    if out is not None:
+        summary.write(out, task, result, written, x)
+    for w in written["warnings"]:
+        log.warning(w)
+    return result, written
 
 
 @hydra.main(version_base="1.3", config_path="pkg://zrp_ga.conf", config_name="config")
-def main(cfg: DictConfig) -> None:
+def main(cfg: DictConfig) -> float:
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    from zrp_ga import summary
+
     hc = HydraConfig.get()
-    out = hc.runtime.output_dir
+    out = Path(hc.runtime.output_dir)
     multirun = hc.mode == RunMode.MULTIRUN
-    budget = (cfg.population.generations, cfg.population.max_evals) if cfg.algorithm.name != "lm" else (None, None)
-    progress = Progress(*budget) if cfg.progress and not multirun else None
-    try:
-        s = run(cfg, out, progress)
-    except KeyboardInterrupt:
-        where = cfg.resume or out
-        print(f"\nzrp-ga: interrupted; the checkpoint and convergence.csv in {where} are complete up to "
-              f"the last finished generation: continue with  zrp-ga resume={where}", file=sys.stderr)  # fmt: skip
-        sys.exit(130)
-    except ValueError as exc:  # ConfigError and bad input files: one line, no traceback
-        if multirun:
-            raise  # recorded as this job's failure in the sweep manifest; the other jobs go on
-        print(f"zrp-ga: error: {exc}", file=sys.stderr)
-        sys.exit(2)
-    if multirun:
-        v = s["validation_rms_mm"]["calibrated"]
-        log.info("job %s [%s]: best %.6g after %d evaluations, validation %.4g mm, %.1f s",
-                 hc.job.num, " ".join(hc.overrides.task), s["final_cost"], s["nevals"], v, s["wall_s"])  # fmt: skip
-        return
-    print(f"results in {out if not cfg.resume else cfg.resume}")
-    print(
-        f"cost {s['initial_cost']:.4g} -> {s['final_cost']:.4g} after {s['nevals']} evaluations: "
-        f"final/initial = {s['final_over_initial']:.3g} (the paper: 0.241 after 11 iterations)"
-    )
-    v = s["validation_rms_mm"]
-    print(f"validation RMS position error on unseen poses: {v['nominal']:.4g} mm nominal -> {v['calibrated']:.4g} mm calibrated")
+    _started.append(Path(cfg.resume) if cfg.get("resume") else out)
+    objective = run(cfg, out, progress=cfg.progress and not multirun)
+    summary.console(_started[-1], hc, multirun)
+    return objective
+
+
+_started: list[Path] = []  # where the run writes, for the interrupt message
 
 
 def cli() -> None:
-    """The console script: composition errors (a typo in a key, a wrong type, an unknown option)
-    become one line naming the key, before Hydra starts; then :func:`main` runs."""
-    args = sys.argv[1:]
-    single = not any(a in ("-m", "--multirun") or a.startswith("hydra.mode") for a in args)
-    plain = [a for a in args if not a.startswith("-") and not a.lstrip("+~").startswith("hydra")]
-    if single:
-        try:
-            config.load(plain)
-        except Exception as exc:  # Hydra and OmegaConf errors: keep what names the key
-            print(f"zrp-ga: error: {one_line(exc)}", file=sys.stderr)
-            sys.exit(2)
-    main()
+    """The console script: :func:`main`, with the errors in the user's input (a bad key or value,
+    a missing or malformed file) printed as one line, exit code 2, and Ctrl-C as a hint to resume.
+
+    Hydra prints composition errors over several lines and exits with 1; with
+    ``HYDRA_FULL_ERROR`` set it raises them instead, which is how they are caught here (set it
+    yourself to see Hydra's full traceback)."""
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    from zrp_ga.hydra_callbacks import Refused
+
+    full = os.environ.get("HYDRA_FULL_ERROR") == "1"
+    os.environ["HYDRA_FULL_ERROR"] = "1"
+    try:
+        main()
+    except (HydraException, OmegaConfBaseException, ValueError, OSError, Refused) as exc:
+        if full:
+            raise
+        print(f"zrp-ga: error: {one_line(getattr(exc, 'error', exc))}", file=sys.stderr)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        where = _started[-1] if _started else "the run directory"
+        print(f"\nzrp-ga: interrupted; the checkpoint and convergence.csv in {where} are complete up to the last "
+              f"finished generation: continue with  zrp-ga resume={where}", file=sys.stderr)  # fmt: skip
+        sys.exit(130)
 
 
 def one_line(exc: BaseException) -> str:
-    """A composition error on one line: what is wrong and the key (or the options) it concerns."""
+    """An error on one line: what is wrong and the key (or the options) it concerns."""
     for e in (exc.__cause__, exc):
         lines = [line.strip() for line in str(e or "").splitlines() if line.strip()]
         key = next((line.split(":", 1)[1].strip() for line in lines if line.startswith("full_key:")), None)
@@ -276,6 +212,8 @@ def one_line(exc: BaseException) -> str:
     if heads:
         options = [line for line in lines[heads[0] + 1 :] if not line.startswith(("Config search path", "provider="))]
         return f"{lines[0]}; {lines[heads[0]].rstrip(':').lower()}: {', '.join(options)}"
+    if isinstance(exc, OSError) and exc.filename:
+        return f"{exc.filename}: {exc.strerror}"
     return lines[0]
 
 

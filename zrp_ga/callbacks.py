@@ -1,82 +1,152 @@
-"""Hydra callbacks: the sweep manifest.
-
-Every job of a multirun appends its state to ``manifest.jsonl`` in the sweep directory when it
-starts (``running``) and when it ends (``done``, or ``failed`` with the error), one JSON line
-each, so that a sweep still running, or killed, can be read at any time; the last line of a job
-is its state; ``manifest.csv`` holds one row per job, rewritten as each job ends. Lines are short
-and appended with one ``write`` each, so jobs of a parallel launcher do not interleave them.
-"""
+"""What happens after each generation, outside the algorithm: timing, the validation error of
+the reported genome, the convergence CSV, the progress line and checkpoints. Each is a
+:class:`zrp_ga.algorithms.Callback`; the app runs them in that order (each adds to the row or
+reads it)."""
 
 from __future__ import annotations
 
-import datetime
-import json
-import os
+import csv
+import functools
+import sys
+import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
-import pandas as pd
-from hydra.core.hydra_config import HydraConfig
-from hydra.core.utils import JobReturn, JobStatus
-from hydra.experimental.callback import Callback
-from hydra.types import RunMode
-from omegaconf import DictConfig
+import numpy as np
 
-MANIFEST = "manifest.jsonl"
+from zrp_ga import checkpoint
+from zrp_ga.algorithms import Algorithm, Callback, Result
+from zrp_ga.metrics import Judge
 
-
-def _append(path: Path, record: dict) -> None:
-    line = json.dumps(record) + "\n"
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-    try:
-        os.write(fd, line.encode())
-    finally:
-        os.close(fd)
+CONVERGENCE = "convergence.csv"
+COLUMNS = [
+    "gen", "nevals", "best", "mean", "median", "std", "worst", "n_nonfinite",
+    "val_rms_mm", "val_max_mm", "param_err", "eval_s", "bookkeeping_s", "refine_s", "wall_s",
+]  # fmt: skip
+WALL_CLOCK_COLUMNS = ["eval_s", "bookkeeping_s", "refine_s", "wall_s"]
 
 
-def read_manifest(sweep_dir: str | Path) -> pd.DataFrame:
-    """One row per job with its last state: job, overrides, dir, status, error, time."""
-    path = Path(sweep_dir) / MANIFEST
-    records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-    if not records:
-        return pd.DataFrame(columns=["job", "overrides", "dir", "status", "error", "time"])
-    df = pd.DataFrame(records).drop_duplicates("job", keep="last").sort_values("job")
-    return df.reset_index(drop=True)
+class Timing(Callback):
+    """Seconds spent per generation in the cost (``eval_s``), in the pseudo-inverse step
+    (``refine_s``) and in everything else (``bookkeeping_s``: selection, variation, survival,
+    statistics, callbacks), and since the start (``wall_s``). The toolbox's ``evaluate`` and
+    ``refine`` are timed by decorating them (DEAP's ``Toolbox.decorate``)."""
+
+    def on_start(self, algorithm: Algorithm) -> None:
+        self.spent = {"eval_s": 0.0, "refine_s": 0.0}
+        for alias, key in (("evaluate", "eval_s"), ("refine", "refine_s")):
+            if hasattr(algorithm.toolbox, alias):
+                algorithm.toolbox.decorate(alias, self._timed(key))
+        self.last = time.perf_counter()
+
+    def _timed(self, key: str) -> Callable:
+        def decorator(fn: Callable) -> Callable:
+            @functools.wraps(fn)
+            def timed(*args, **kwargs):
+                t0 = time.perf_counter()
+                try:
+                    return fn(*args, **kwargs)
+                finally:
+                    self.spent[key] += time.perf_counter() - t0
+
+            return timed
+
+        return decorator
+
+    def on_generation(self, algorithm: Algorithm, row: dict) -> None:
+        now = time.perf_counter()
+        total = now - self.last
+        row.update(self.spent, bookkeeping_s=total - sum(self.spent.values()), wall_s=algorithm.elapsed())
+        self.spent = dict.fromkeys(self.spent, 0.0)
+        self.last = now
 
 
-class Manifest(Callback):
-    """Writes the sweep manifest (see the module docstring)."""
+class Validation(Callback):
+    """The validation error (mm) and the parameter error of the genome each row reports."""
 
-    def _record(self, status: str, error: str | None = None) -> None:
-        hc = HydraConfig.get()
-        if hc.mode != RunMode.MULTIRUN:
+    def __init__(self, judge: Judge):
+        self.judge = judge
+
+    def on_generation(self, algorithm: Algorithm, row: dict) -> None:
+        m = self.judge(algorithm.current()[0])
+        row.update(val_rms_mm=m["val_rms_m"] * 1e3, val_max_mm=m["val_max_m"] * 1e3, param_err=m["param_err"])
+
+
+class ConvergenceLog(Callback):
+    """``convergence.csv``: one row per generation, flushed at once, so that an interrupted run
+    keeps every finished generation. Resuming, the rows up to ``keep_until_gen`` are kept (rows
+    a killed run wrote past its last checkpoint are written again by the resumed run)."""
+
+    def __init__(self, path: str | Path, keep_until_gen: int | None = None):
+        self.path, self.keep_until_gen = Path(path), keep_until_gen
+
+    def on_start(self, algorithm: Algorithm) -> None:
+        kept = []
+        if self.keep_until_gen is not None and self.path.exists():
+            with open(self.path, newline="") as f:
+                kept = [row for row in csv.DictReader(f) if int(row["gen"]) <= self.keep_until_gen]
+        self._file = open(self.path, "w", newline="")
+        self._writer = csv.DictWriter(self._file, fieldnames=COLUMNS, extrasaction="ignore", restval="")
+        self._writer.writeheader()
+        self._writer.writerows(kept)
+        self._file.flush()
+
+    def on_generation(self, algorithm: Algorithm, row: dict) -> None:
+        self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
+        self._file.flush()
+
+    def on_interrupt(self, algorithm: Algorithm) -> None:
+        self._file.close()
+
+    def on_end(self, algorithm: Algorithm, result: Result) -> None:
+        self._file.close()
+
+
+class Progress(Callback):
+    """A progress line (generation, evaluations, best cost, validation error, time left) at most
+    twice a second and at the end; rewritten in place on a terminal, one line each otherwise."""
+
+    def __init__(self, stream=None, every_s: float = 0.5):
+        self.stream = stream or sys.stderr
+        self.tty, self.every_s = self.stream.isatty(), every_s
+        self._last, self._shown = -np.inf, None
+
+    def on_generation(self, algorithm: Algorithm, row: dict) -> None:
+        now = time.perf_counter()
+        if algorithm.has_next() and now - self._last < self.every_s:
             return
-        sweep = Path(hc.sweep.dir)
-        sweep.mkdir(parents=True, exist_ok=True)
-        _append(
-            sweep / MANIFEST,
-            {
-                "job": int(hc.job.num),
-                "overrides": " ".join(hc.overrides.task),
-                "dir": str(hc.sweep.subdir),
-                "status": status,
-                "error": error,
-                "time": datetime.datetime.now().isoformat(timespec="seconds"),
-            },
-        )
+        self._last, self._shown = now, row["gen"]
+        text = (f"gen {row['gen']:5d}  evals {row['nevals']:8d}  best {row['best']:.6g}  "
+                f"val_rms {row.get('val_rms_mm', float('nan')):.4g} mm")  # fmt: skip
+        done = algorithm.fraction_done()
+        if done and 0 < done < 1:
+            text += f"  time left {row['wall_s'] * (1 - done) / done:6.1f} s"
+        self.stream.write(f"\r{text}\x1b[K" if self.tty else text + "\n")
+        self.stream.flush()
 
-    def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
-        self._record("running")
+    def on_end(self, algorithm: Algorithm, result: Result | None = None) -> None:
+        if self.tty and self._shown is not None:
+            self.stream.write("\n")
+            self.stream.flush()
 
-    def on_job_end(self, config: DictConfig, job_return: JobReturn, **kwargs: Any) -> None:
-        if job_return.status == JobStatus.COMPLETED:
-            self._record("done")
-        else:
-            exc = job_return._return_value
-            self._record("failed", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
-        if HydraConfig.get().mode == RunMode.MULTIRUN:
-            # A table of the jobs so far, replaced whole (Hydra skips on_multirun_end when a job failed).
-            sweep = Path(HydraConfig.get().sweep.dir)
-            tmp = sweep / f".manifest.{os.getpid()}.csv"
-            read_manifest(sweep).to_csv(tmp, index=False)
-            os.replace(tmp, sweep / "manifest.csv")
+    on_interrupt = on_end
+
+
+class Checkpoint(Callback):
+    """``checkpoint.npz`` every ``every`` generations, after the last one, and on an interrupt
+    (the state after the last finished generation), with the run's config."""
+
+    def __init__(self, path: str | Path, every: int, config: dict):
+        self.path, self.every, self.config = Path(path), every, config
+
+    def on_generation(self, algorithm: Algorithm, row: dict) -> None:
+        self.last = algorithm.state()
+        if not algorithm.has_next() or (self.every and algorithm.gen % self.every == 0):
+            self.save()
+
+    def on_interrupt(self, algorithm: Algorithm) -> None:
+        if hasattr(self, "last"):
+            self.save()
+
+    def save(self) -> None:
+        checkpoint.save(self.path, {**self.last, "config": self.config})

@@ -1,125 +1,309 @@
-"""Structured configs: the schema every composed config is checked against.
+"""The typed config schema: every key, its type and its default, in one place.
 
-The dataclasses are registered in Hydra's ConfigStore as ``config_schema``, which
-``conf/config.yaml`` names first in its defaults list. A value of the wrong type or a key that
-is not in the schema (``problem.n_pose=30``) then fails at composition, before anything runs.
-Operator parameters (``crossover.op.eta``) are free-form here and checked against the
-operator's signature when the toolbox is built.
+The dataclasses are registered in Hydra's ConfigStore (:func:`register`): ``config_schema`` is
+the first entry of ``conf/config.yaml``'s defaults list, and the options of the
+``problem`` and ``algorithm`` groups extend their own schema (``- /ga_schema@_here_`` in
+``conf/algorithm/ga.yaml``). A key that is not in the schema (``problem.n_pose=30``) or a value
+of the wrong type fails at composition, before anything runs; string choices are Enums, so
+``algorithm.strategy=steady`` fails there too. Values that are well typed but meaningless
+(``population.mu=0``) are refused by each section's ``check``, which names the key.
+
+Objects are built from the ``_target_`` entries by ``hydra.utils.instantiate``: the robot, the
+problem (a :class:`zrp_ga.problems.Task`) and the optimiser. This module imports nothing heavy,
+so that ``zrp-ga --help`` starts fast.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+import enum
+import math
+import typing
+from typing import Any, Optional
 
-from hydra import compose, initialize_config_module
-from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig
 
 
+class ConfigError(ValueError):
+    """A setting that cannot run; the message names the key."""
+
+
+class Cost(enum.Enum):
+    linear = "linear"  # the paper: |[dr; dp; 0] - J x| with J at the nominal parameters
+    nonlinear = "nonlinear"  # the forward-kinematics residual
+
+
+class Norm(enum.Enum):
+    spectral = "spectral"  # 2-norm of the residual vector
+    rms = "rms"  # 2-norm / sqrt(rows)
+
+
+class Strategy(enum.Enum):
+    mu_plus_lambda = "mu_plus_lambda"  # the paper: parents and offspring compete
+    mu_comma_lambda = "mu_comma_lambda"  # the best mu of the offspring
+    generational = "generational"  # the offspring, keeping `elite` parents
+
+
+class Repair(enum.Enum):
+    clip = "clip"  # to the bound
+    reflect = "reflect"  # off the bound, folding any distance back into the range
+
+
+class Format(enum.Enum):
+    zrp = "zrp"  # zrp_ga's CSV format (zrp_ga/measurements.py)
+    ur10_ipa = "ur10_ipa"  # the UR10 laser-tracker files of Landgraf et al.
+
+
+def _require(ok: bool, key: str, what: str, value: Any) -> None:
+    if not ok:
+        raise ConfigError(f"{key}: must be {what}, got {value}")
+
+
+def _finite(value: float | None) -> bool:
+    return value is None or math.isfinite(value)
+
+
+# --- the GA's parts ------------------------------------------------------------------------------
 @dataclasses.dataclass
-class RobotConf:
-    name: str = "puma560"
-    file: str | None = None
+class PopulationConf:
+    mu: int = 20  # parents
+    lambda_: int = 20  # offspring per generation (CMA-ES: its population size)
+    generations: Optional[int] = 11  # stop after this many generations (null: no limit)
+    max_evals: Optional[int] = None  # stop after this many cost evaluations (null: no limit)
+
+    def check(self, key: str = "population") -> None:
+        _require(self.mu >= 1, f"{key}.mu", "at least 1", self.mu)
+        _require(self.lambda_ >= 1, f"{key}.lambda_", "at least 1", self.lambda_)
+        if self.generations is None and self.max_evals is None:
+            raise ConfigError(f"{key}: set generations or max_evals, or both")
+        _require(self.generations is None or self.generations >= 1, f"{key}.generations", "at least 1", self.generations)
+        _require(self.max_evals is None or self.max_evals > self.mu, f"{key}.max_evals",
+                 f"more than the initial population (mu = {self.mu})", self.max_evals)  # fmt: skip
 
 
+@dataclasses.dataclass
+class VariationConf:
+    """crossover, mutation, inversion, rotation: an operator and the probability of applying it
+    (per pair for crossover, per child otherwise)."""
+
+    prob: float = 0.0
+    op: Optional[Any] = None  # {_target_: dotted.name, _partial_: true, params...}; null: none
+
+    def check(self, key: str) -> None:
+        _require(0.0 <= self.prob <= 1.0, f"{key}.prob", "a probability in [0, 1]", self.prob)
+
+
+@dataclasses.dataclass
+class SelectionConf:
+    op: Any = MISSING  # {_target_: dotted.name, _partial_: true, params...}
+
+
+@dataclasses.dataclass
+class RefineConf:
+    """The pseudo-inverse step (the paper's step 8) for a share of each generation's children."""
+
+    share: float = 0.0
+    op: Optional[Any] = None
+
+    def check(self, key: str = "refine") -> None:
+        _require(0.0 <= self.share <= 1.0, f"{key}.share", "a share in [0, 1]", self.share)
+
+
+# --- optimisers ----------------------------------------------------------------------------------
+@dataclasses.dataclass
+class GAConf:
+    _target_: str = "zrp_ga.algorithms.ga.GA"
+    _recursive_: bool = False  # the GA binds its operators itself (see zrp_ga.operators.build)
+    population: Any = "${population}"
+    selection: Any = "${selection}"
+    crossover: Any = "${crossover}"
+    mutation: Any = "${mutation}"
+    inversion: Any = "${inversion}"
+    rotation: Any = "${rotation}"
+    refine: Any = "${refine}"
+    strategy: Strategy = Strategy.mu_plus_lambda
+    elite: int = 1  # parents kept by the generational strategy
+    repair: Repair = Repair.clip  # how genes come back into their ranges
+    target_cost: Optional[float] = None  # stop when the best cost reaches it
+    stagnation: Optional[int] = None  # stop after this many generations without improvement
+
+
+@dataclasses.dataclass
+class LMConf:
+    _target_: str = "zrp_ga.algorithms.lm.LM"
+    max_evals: Optional[int] = None  # cap on residual evaluations (null: MINPACK's own)
+
+
+@dataclasses.dataclass
+class CMAESConf:
+    _target_: str = "zrp_ga.algorithms.cmaes.CMAES"
+    population: Any = "${population}"  # lambda_: CMA-ES's population size; generations, max_evals: its budget
+    sigma0: float = 0.3  # initial standard deviation, as a fraction of each gene's range
+
+
+# --- problems and robots -------------------------------------------------------------------------
 @dataclasses.dataclass
 class ProblemConf:
-    kind: str = "simulated"  # simulated | measured
-    robot: str | None = None  # measured data: the preset arm that was measured (over robot=...)
-    # measured data (kind: measured)
-    format: str = "zrp"  # zrp (zrp_ga/measurements.py) | ur10_ipa
-    calibration_file: str | None = None  # a path, or pkg:NAME for the data shipped with zrp_ga
-    validation_file: str | None = None
-    validation_fraction: float | None = None  # or split the calibration file at random
+    """What every problem kind shares: the genome, the cost, the gene ranges."""
+
+    name: Optional[str] = None  # the instance's name in every file (null: derived from the config)
+    identify_base: bool = False  # add b0_1 to the genome
+    identify_hand: bool = False  # add the hand orientation
+    axis_error: float = 0.01  # gene ranges: +-axis_error x search_scale on the axes (rad) ...
+    body_error: float = 0.0005  # ... +-body_error x search_scale (m) on the body vectors
+    search_scale: float = 1.0
+    cost: Cost = Cost.linear
+    norm: Norm = Norm.spectral
+    orientation_weight: float = 1.0  # m per rad in the residual
+
+    def check(self, key: str = "problem") -> None:
+        for name in ("axis_error", "body_error", "search_scale"):
+            value = getattr(self, name)
+            _require(math.isfinite(value) and value > 0, f"{key}.{name}", "a number > 0", value)
+        _require(math.isfinite(self.axis_error * self.search_scale) and self.axis_error * self.search_scale < 1.0,
+                 f"{key}.axis_error", f"below 1 / search_scale (axis errors are rad; {self.search_scale} x {self.axis_error} "
+                 "would let an axis turn over)", self.axis_error)  # fmt: skip
+        w = self.orientation_weight
+        _require(math.isfinite(w) and w >= 0, f"{key}.orientation_weight", "a number >= 0", w)
+
+
+@dataclasses.dataclass
+class SimulatedConf(ProblemConf):
+    _target_: str = "zrp_ga.problems.simulated.build"
+    n_poses: int = 1
+    n_validation: int = 100  # unseen poses, never in the cost
+    joint_noise: float = 0.001  # U(+-joint_noise) rad on the joints the arm really took
+    position_noise: float = 0.0  # Gaussian measurement noise, m (standard deviation)
+    orientation_noise: float = 0.0  # rad
+    position_only: bool = False
+    seed: Optional[int] = None  # the instance's seed (null: the run's seed)
+
+    def check(self, key: str = "problem") -> None:
+        super().check(key)
+        _require(self.n_poses >= 1, f"{key}.n_poses", "at least 1", self.n_poses)
+        _require(self.n_validation >= 0, f"{key}.n_validation", "at least 0", self.n_validation)
+        for name in ("joint_noise", "position_noise", "orientation_noise"):
+            value = getattr(self, name)
+            _require(math.isfinite(value) and value >= 0, f"{key}.{name}", "a number >= 0", value)
+
+
+@dataclasses.dataclass
+class MeasuredConf(ProblemConf):
+    _target_: str = "zrp_ga.problems.measured.build"
+    format: Format = Format.zrp
+    calibration_file: Optional[str] = None  # a path, or pkg:NAME for the data shipped with zrp_ga
+    validation_file: Optional[str] = None
+    validation_fraction: Optional[float] = None  # or split the calibration file at random
     drop_bad_rows: bool = False
     length_unit: str = "m"  # zrp format
     angle_unit: str = "rad"
     use_orientation: bool = False  # fit measured orientations too (and the hand orientation)
     use_weights: bool = False  # weight position errors by the rows' standard deviations
-    n_poses: int = 1
-    n_validation: int = 100
-    axis_error: float = 0.01
-    body_error: float = 0.0005
-    joint_noise: float = 0.001
-    position_noise: float = 0.0
-    orientation_noise: float = 0.0
-    position_only: bool = False
-    identify_base: bool = False
-    identify_hand: bool = False
-    search_scale: float = 1.0
-    cost: str = "linear"
-    norm: str = "spectral"
-    orientation_weight: float = 1.0
-    rcond: float = 1e-9
-    seed: int | None = None
+
+    def check(self, key: str = "problem") -> None:
+        super().check(key)
+        if not self.calibration_file:
+            raise ConfigError(f"{key}.calibration_file: a measured problem needs a file")
+        f = self.validation_fraction
+        _require(f is None or 0.0 < f < 1.0, f"{key}.validation_fraction", "in (0, 1) or null", f)
 
 
 @dataclasses.dataclass
-class AlgorithmConf:
-    name: str = "ga"
-    strategy: str = "mu_plus_lambda"
-    elite: int = 1
-    repair: str = "clip"
-    target_cost: float | None = None
-    stagnation: int | None = None
-    max_evals: int | None = None  # LM's own cap on residual evaluations
-    sigma0: float = 0.3  # CMA-ES
+class RobotConf:
+    _target_: str = "zrp_ga.robots.load"
+    name: Optional[str] = "puma560"  # a preset
+    file: Optional[str] = None  # or a robot file (takes precedence)
 
 
-@dataclasses.dataclass
-class PopulationConf:
-    mu: int = 20
-    lambda_: int = 20
-    generations: int | None = 11
-    max_evals: int | None = None
-
-
-@dataclasses.dataclass
-class OperatorConf:
-    name: str = MISSING
-    prob: float = 0.0
-    op: Any = None
-
-
-@dataclasses.dataclass
-class SelectionConf:
-    name: str = MISSING
-    op: Any = MISSING
-
-
-@dataclasses.dataclass
-class RefineConf:
-    name: str = "pinv"
-    share: float = 0.1
-
-
+# --- the whole config ----------------------------------------------------------------------------
 @dataclasses.dataclass
 class Config:
     robot: RobotConf = dataclasses.field(default_factory=RobotConf)
-    problem: ProblemConf = dataclasses.field(default_factory=ProblemConf)
-    algorithm: AlgorithmConf = dataclasses.field(default_factory=AlgorithmConf)
+    problem: Any = MISSING
+    algorithm: Any = MISSING
     population: PopulationConf = dataclasses.field(default_factory=PopulationConf)
     selection: SelectionConf = dataclasses.field(default_factory=SelectionConf)
-    crossover: OperatorConf = dataclasses.field(default_factory=OperatorConf)
-    mutation: OperatorConf = dataclasses.field(default_factory=OperatorConf)
-    inversion: OperatorConf = dataclasses.field(default_factory=OperatorConf)
-    rotation: OperatorConf = dataclasses.field(default_factory=OperatorConf)
+    crossover: VariationConf = dataclasses.field(default_factory=VariationConf)
+    mutation: VariationConf = dataclasses.field(default_factory=VariationConf)
+    inversion: VariationConf = dataclasses.field(default_factory=VariationConf)
+    rotation: VariationConf = dataclasses.field(default_factory=VariationConf)
     refine: RefineConf = dataclasses.field(default_factory=RefineConf)
-    seed: int = 0
+    seed: int = 0  # seeds numpy, `random` and the simulated problem (unless problem.seed is set)
     checkpoint_every: int = 10  # generations between checkpoints; 0: none
-    resume: str | None = None  # a run directory to continue
-    progress: bool = True  # a line per generation on the terminal (single runs)
+    resume: Optional[str] = None  # a run directory to continue from its checkpoint
+    progress: bool = True  # a progress line on the terminal (single runs)
+
+
+# Stored at the root of the config tree, not in a group, so that they are no options of their own
+# (a group option extends one with ``- /ga_schema@_here_`` in its defaults list).
+SCHEMAS = {"config_schema": Config, "ga_schema": GAConf, "lm_schema": LMConf, "cmaes_schema": CMAESConf,
+           "simulated_schema": SimulatedConf, "measured_schema": MeasuredConf}  # fmt: skip
 
 
 def register() -> None:
-    """Store the schema in Hydra's ConfigStore (idempotent)."""
-    ConfigStore.instance().store(name="config_schema", node=Config)
+    """Store the schemas in Hydra's ConfigStore (idempotent)."""
+    from hydra.core.config_store import ConfigStore
+
+    cs = ConfigStore.instance()
+    for name, node in SCHEMAS.items():
+        cs.store(name=name, node=node)
+
+
+def _enums(cls: type, data: dict, key: str) -> dict:
+    """``data`` with the strings of Enum-typed fields turned into the Enum (configs read back
+    from a checkpoint or given from Python hold plain strings)."""
+    hints = typing.get_type_hints(cls)
+    out = dict(data)
+    for name, value in data.items():
+        kind = hints.get(name)
+        if isinstance(kind, type) and issubclass(kind, enum.Enum) and not isinstance(value, kind):
+            try:
+                out[name] = kind(value)
+            except ValueError:
+                raise ConfigError(f"{key}.{name}: {value!r} is not one of {', '.join(m.value for m in kind)}") from None
+    return out
+
+
+def section(cls: type, node: Any, key: str) -> Any:
+    """``node`` (a config node, a dict or already a ``cls``) as a checked ``cls`` instance."""
+    if isinstance(node, cls):
+        obj = node
+    else:
+        from omegaconf import OmegaConf
+
+        data = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else dict(node)
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ConfigError(f"{key}.{unknown[0]}: not a setting (known: {', '.join(sorted(names))})")
+        obj = cls(**_enums(cls, data, key))
+    if hasattr(obj, "check"):
+        obj.check(key)
+    return obj
+
+
+def instantiate(node: DictConfig, key: str, **kwargs: Any) -> Any:
+    """``hydra.utils.instantiate(node)(**kwargs)`` with the user's mistakes (ValueError from the
+    target) raised as themselves, so that they reach the console as one line. ``kwargs`` are
+    passed to the partial rather than to ``instantiate``, which would merge them into the
+    config (a robot, being a dataclass, would become a config node)."""
+    from hydra.errors import InstantiationException
+    from hydra.utils import instantiate as hydra_instantiate
+
+    try:
+        return hydra_instantiate(node, _partial_=True)(**kwargs)
+    except InstantiationException as exc:
+        cause = exc.__cause__
+        if isinstance(cause, (ValueError, OSError)):
+            raise cause from None
+        raise ConfigError(f"{key}: {str(exc).splitlines()[0]}") from None
 
 
 def load(overrides: list[str] | tuple[str, ...] = (), return_hydra_config: bool = False) -> DictConfig:
     """The composed config for ``overrides``, as ``zrp-ga`` would see it (for tests, notebooks and
     experiment scripts)."""
+    from hydra import compose, initialize_config_module
+
     register()
     with initialize_config_module("zrp_ga.conf", version_base="1.3"):
         return compose("config", overrides=list(overrides), return_hydra_config=return_hydra_config)

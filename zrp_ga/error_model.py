@@ -4,7 +4,7 @@ Parameter errors are ordered as in the paper, ``de = [du0_1 .. du0_n, db0_2 .. d
 (6n values); :func:`pose_jacobians` can append the base point ``db0_1`` and a small rotation
 ``dphi_h`` of the hand orientation (``R_h0 <- exp([dphi_h]x) R_h0``).
 
-Identifiability (DESIGN.md section 2). Sliding the point chosen on axis i along ``u_i``
+Identifiability (docs/model.md). Sliding the point chosen on axis i along ``u_i``
 changes ``b0_i`` and ``b0_{i+1}`` by opposite amounts and leaves every pose unchanged. With
 ``b0_1`` fixed this gives n - 1 null directions of the stacked Jacobian of a 6R arm under
 full-pose measurements, whatever the number of poses: for the PUMA 560 the rank is
@@ -19,6 +19,7 @@ more null directions per prismatic joint. :func:`identifiability` names all of t
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -26,6 +27,9 @@ from numpy.typing import ArrayLike, NDArray
 from zrp_ga import so3
 from zrp_ga.kinematics import check_q
 from zrp_ga.robot import ZRPRobot
+
+if TYPE_CHECKING:
+    from zrp_ga.layout import Layout
 
 Array = NDArray[np.float64]
 
@@ -233,3 +237,39 @@ def identifiability(
         named.append(f"... and {len(rest_dirs) - max_listed} more combinations: too few measurements for the parameters")
     cond = float(s[0] / s[rank - 1]) if rank else float("inf")
     return IdentifiabilityReport(rank, K, s, cond, named)
+
+
+def canonical(layout: Layout, nominal: ZRPRobot, x: ArrayLike) -> Array:
+    """Gauge fixing: the genome ``x`` (K,) minus its components along the exact null directions
+    of the model, the slide of each axis point along its own (normalised) axis and any shift of
+    a prismatic joint's point. Every pose and every cost stays the same; body-vector errors
+    become comparable between runs (LM, whose damping moves freely along these directions,
+    otherwise reports metres)."""
+    x = np.asarray(x, dtype=float).copy()
+    n = nominal.n
+    u = layout.unpack(nominal, x).U[:, :, 0]
+    start = {i: layout.blocks["b0"].start + 3 * (i - 2) for i in range(2, n + 2)}
+    if layout.base:
+        start[1] = layout.blocks["base"].start
+    vectors = []
+    for i in range(1, n + 1):
+        if i not in start:
+            continue
+        for d in np.eye(3) if nominal.joint_types[i - 1] == "P" else u[i - 1][None]:
+            v = np.zeros(layout.size)
+            v[start[i] : start[i] + 3] += d
+            v[start[i + 1] : start[i + 1] + 3] -= d
+            vectors.append(v)
+    if vectors:
+        Q = np.linalg.qr(np.array(vectors).T)[0]
+        x -= Q @ (Q.T @ x)
+    return x
+
+
+def row_space_projector(J: ArrayLike) -> Array:
+    """Orthogonal projector (K, K) onto the row space of ``J`` (rows, K): the parameter directions
+    the poses behind ``J`` can see (numpy's default rank tolerance)."""
+    J = np.asarray(J, dtype=float)
+    _, s, Vt = np.linalg.svd(J, full_matrices=False)
+    V = Vt[s > s[0] * max(J.shape) * np.finfo(float).eps]
+    return V.T @ V

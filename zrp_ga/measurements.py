@@ -25,11 +25,11 @@ import logging
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
 from scipy.spatial.transform import Rotation
 
-from zrp_ga.problem import Measurements
 
 log = logging.getLogger(__name__)
 
@@ -70,31 +70,63 @@ UR10_IPA = Format(
 
 
 @dataclasses.dataclass(frozen=True)
-class MeasuredData:
-    """Poses read from a file: SI units, the file's line of every row."""
+class Measurements:
+    """Measured poses, SI units: joint values ``q`` (M, n) as given to the model (rad, m),
+    positions ``p`` (M, 3) m, orientations ``R`` (M, 3, 3) or None for position-only data;
+    optional position weights (M, 3) on the position errors, the positions' standard deviations
+    ``std`` (M, 3) m, and where the rows came from (``source`` and each row's file ``lines``)."""
 
-    source: str
-    q: NDArray[np.float64]  # (M, n), rad / m
-    p: NDArray[np.float64]  # (M, 3), m
-    R: NDArray[np.float64] | None  # (M, 3, 3)
-    std: NDArray[np.float64] | None  # (M, 3), m
-    lines: NDArray[np.int64]  # (M,)
+    q: Array
+    p: Array
+    R: Array | None = None
+    weights: Array | None = None
+    std: Array | None = None
+    source: str = "measurements"
+    lines: NDArray[np.int64] | None = None
 
-    def measurements(self, orientation: bool = False, weights: bool = False) -> Measurements:
-        """For a problem: orientations only if asked; with ``weights``, each position error is
+    def __post_init__(self) -> None:
+        q = np.atleast_2d(np.asarray(self.q, dtype=float))
+        M = q.shape[0]
+        checks = [("q", q, q.shape if q.ndim == 2 else (M, -1)), ("p", self.p, (M, 3))]
+        checks += [(k, getattr(self, k), s) for k, s in (("R", (M, 3, 3)), ("weights", (M, 3)), ("std", (M, 3)))
+                   if getattr(self, k) is not None]  # fmt: skip
+        for name, value, shape in checks:
+            a = np.asarray(value, dtype=float)
+            if a.shape != shape:
+                raise ValueError(f"measurements.{name}: expected shape {shape}, got {a.shape}")
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"measurements.{name}: NaN or inf at index {tuple(np.argwhere(~np.isfinite(a))[0])}")
+            object.__setattr__(self, name, a)
+        lines = np.arange(M) + 1 if self.lines is None else np.asarray(self.lines, dtype=np.int64)
+        object.__setattr__(self, "lines", lines)
+
+    @property
+    def M(self) -> int:
+        return self.q.shape[0]
+
+    @property
+    def position_only(self) -> bool:
+        return self.R is None
+
+    def for_calibration(self, orientation: bool = False, weights: bool = False) -> Measurements:
+        """What a problem sees: orientations only if asked; with ``weights``, each position error
         weighted by the median standard deviation over its own (so the cost stays in metres)."""
         w = None
         if weights and self.std is not None:
             w = np.median(self.std) / np.maximum(self.std, 1e-12)
-        return Measurements(q=self.q, p=self.p, R=self.R if orientation else None, weights=w)
+        return dataclasses.replace(self, R=self.R if orientation else None, weights=w)
 
-    def subset(self, rows: NDArray) -> MeasuredData:
+    def subset(self, rows: NDArray) -> Measurements:
+        """The rows ``rows`` (indices or a mask), with their file lines."""
         pick = lambda a: None if a is None else a[rows]  # noqa: E731
-        return MeasuredData(self.source, self.q[rows], self.p[rows], pick(self.R), pick(self.std), self.lines[rows])
+        return dataclasses.replace(self, q=self.q[rows], p=self.p[rows], R=pick(self.R), weights=pick(self.weights),
+                                   std=pick(self.std), lines=self.lines[rows])  # fmt: skip
 
 
-def read(path: str | Path, fmt: Format, n_joints: int, drop_bad_rows: bool = False) -> MeasuredData:
+def read(path: str | Path, fmt: Format, n_joints: int, drop_bad_rows: bool = False) -> Measurements:
     """Read a measurement file; ValueError naming file, line and column for anything wrong."""
+    import pandas as pd
+
     path = Path(path)
     for unit, table in ((fmt.length_unit, LENGTH), (fmt.angle_unit, ANGLE), (fmt.joint_unit, ANGLE)):
         if unit not in table:
@@ -148,10 +180,10 @@ def read(path: str | Path, fmt: Format, n_joints: int, drop_bad_rows: bool = Fal
         R = Rotation.from_euler(fmt.euler, values[fmt.orientation].to_numpy(dtype=float) * angle).as_matrix()
     if fmt.std and all(c in values for c in fmt.std):
         std = values[fmt.std].to_numpy(dtype=float) * length
-    return MeasuredData(str(path), q, p, R, std, lines)
+    return Measurements(q, p, R, std=std, source=str(path), lines=lines)
 
 
-def split(data: MeasuredData, fraction: float, rng: np.random.Generator) -> tuple[MeasuredData, MeasuredData]:
+def split(data: Measurements, fraction: float, rng: np.random.Generator) -> tuple[Measurements, Measurements]:
     """A random split of one file: ``fraction`` of the rows for validation."""
     if not 0.0 < fraction < 1.0:
         raise ValueError(f"problem.validation_fraction: must be in (0, 1), got {fraction}")

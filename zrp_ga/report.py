@@ -46,7 +46,7 @@ import pandas as pd  # noqa: E402
 import yaml  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from zrp_ga.callbacks import MANIFEST, read_manifest  # noqa: E402
+from zrp_ga.hydra_callbacks import MANIFEST, read_manifest  # noqa: E402
 
 IGNORED_KEYS = ("hydra", "experiment", "progress", "checkpoint_every")
 
@@ -359,10 +359,15 @@ def plot_configurations(runs: list[Run], labels: list[str], tables: dict, out: P
     return shown
 
 
-def plot_pose_errors(errors: dict[str, tuple[np.ndarray, np.ndarray]], out: Path, name: str = "pose_errors") -> None:
-    """Per-pose position errors before and after calibration, one panel per set of poses;
-    ``errors[set] = (nominal, calibrated)`` in mm."""
-    fig, axes = plt.subplots(len(errors), 1, figsize=(8, 2.8 * len(errors)), squeeze=False)
+def pose_error_figure(run_dir: str | Path):
+    """Per-pose position errors before and after calibration, one panel per set of poses, drawn
+    from a measured run's ``pose_errors.csv`` (a ``matplotlib.figure.Figure``, no backend chosen)."""
+    from matplotlib.figure import Figure
+
+    table = pd.read_csv(Path(run_dir) / "pose_errors.csv")
+    errors = {k: (g["nominal_mm"].to_numpy(), g["calibrated_mm"].to_numpy()) for k, g in table.groupby("set", sort=False)}
+    fig = Figure(figsize=(8, 2.8 * len(errors)))
+    axes = fig.subplots(len(errors), 1, squeeze=False)
     for ax, (label, (before, after)) in zip(axes[:, 0], errors.items()):
         idx = np.arange(1, len(before) + 1)
         ax.plot(idx, before, ".", ms=2.5, alpha=0.6, label=f"nominal, registered (RMS {np.sqrt(np.mean(before**2)):.3g} mm)")
@@ -370,7 +375,8 @@ def plot_pose_errors(errors: dict[str, tuple[np.ndarray, np.ndarray]], out: Path
         ax.set_xlabel(f"pose of the {label} set")
         ax.set_ylabel("position error, mm")
         ax.legend(fontsize=7, markerscale=3)
-    _save(fig, out, name)
+    fig.tight_layout()
+    return fig
 
 
 def _markdown(df: pd.DataFrame, floatfmt: str = ".4g") -> str:

@@ -65,3 +65,14 @@ def get(name: str) -> ZRPRobot:
 def _check(name: str) -> None:
     if name not in _TABLES:
         raise ValueError(f"unknown robot {name!r}; known robots: {', '.join(names())}")
+
+
+def load(name: str | None = None, file: str | None = None) -> ZRPRobot:
+    """The robot of the config's ``robot`` group: the file ``file`` if given, else the preset ``name``."""
+    from pathlib import Path
+
+    if file:
+        return ZRPRobot.from_yaml(Path(file).expanduser())
+    if not name:
+        raise ValueError("robot: give a preset name (robot.name) or a file (robot.file)")
+    return get(name)

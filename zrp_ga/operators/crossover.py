@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.operators import Array, rows, segments, swap_segments
+from zrp_ga.operators import Array, batched, rows, segments, swap_segments
 
 
 def _swap(A: Array, B: Array, mask: np.ndarray) -> None:
@@ -13,6 +13,7 @@ def _swap(A: Array, B: Array, mask: np.ndarray) -> None:
     B[:] = np.where(mask, a, B)
 
 
+@batched
 def one_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array, Array]:
     """Swap the tails after a random cut point in 1..K-1."""
     A, B = rows(ind1), rows(ind2)
@@ -22,6 +23,7 @@ def one_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array
     return ind1, ind2
 
 
+@batched
 def two_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array, Array]:
     """Swap the genes between two distinct random cut points in 1..K-1."""
     A, B = rows(ind1), rows(ind2)
@@ -31,6 +33,7 @@ def two_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array
     return ind1, ind2
 
 
+@batched
 def uniform(ind1: Array, ind2: Array, rng: np.random.Generator, indpb: float = 0.5) -> tuple[Array, Array]:
     """Swap each gene with probability ``indpb``."""
     A, B = rows(ind1), rows(ind2)
@@ -38,6 +41,7 @@ def uniform(ind1: Array, ind2: Array, rng: np.random.Generator, indpb: float = 0
     return ind1, ind2
 
 
+@batched
 def blend(ind1: Array, ind2: Array, rng: np.random.Generator, alpha: float = 0.5) -> tuple[Array, Array]:
     """BLX-alpha: ``gamma = (1 + 2 alpha) U - alpha``, children ``(1-gamma) x1 + gamma x2`` and
     ``gamma x1 + (1-gamma) x2`` (as DEAP's ``cxBlend``)."""
@@ -49,6 +53,7 @@ def blend(ind1: Array, ind2: Array, rng: np.random.Generator, alpha: float = 0.5
     return ind1, ind2
 
 
+@batched
 def sbx(
     ind1: Array, ind2: Array, rng: np.random.Generator, low: Array, up: Array, eta: float = 20.0, indpb: float = 0.5
 ) -> tuple[Array, Array]:

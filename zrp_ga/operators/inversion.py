@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.operators import Array, block_bounds, reverse_segments, rows, segments
+from zrp_ga.operators import Array, batched, block_bounds, reverse_segments, rows, segments
 
 
 def _permute(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]] | None) -> tuple[Array]:
@@ -22,11 +22,13 @@ def _permute(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]]
     return (ind,)
 
 
+@batched
 def block(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]]) -> tuple[Array]:
     """:func:`segment` inside one parameter block (``blocks``: [start, stop) of each)."""
     return _permute(ind, rng, blocks)
 
 
+@batched
 def segment(ind: Array, rng: np.random.Generator) -> tuple[Array]:
     """A random segment anywhere in the genome."""
     return _permute(ind, rng, None)

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.operators import Array, rows
+from zrp_ga.operators import Array, batched, rows
 
 
+@batched
 def gaussian(
     ind: Array, rng: np.random.Generator, low: Array, up: Array, sigma: float = 0.1, indpb: float = 0.2
 ) -> tuple[Array]:
@@ -17,6 +18,7 @@ def gaussian(
     return (ind,)
 
 
+@batched
 def polynomial(
     ind: Array, rng: np.random.Generator, low: Array, up: Array, eta: float = 20.0, indpb: float = 0.2
 ) -> tuple[Array]:
@@ -37,6 +39,7 @@ def polynomial(
     return (ind,)
 
 
+@batched
 def uniform_reset(ind: Array, rng: np.random.Generator, low: Array, up: Array, indpb: float = 0.1) -> tuple[Array]:
     """Replace each gene with probability ``indpb`` by a uniform draw in [low, up]."""
     A = rows(ind)

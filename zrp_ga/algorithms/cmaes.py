@@ -1,0 +1,53 @@
+"""CMA-ES from the ``cma`` package, from the nominal parameters (mean 0), bounded to the gene
+ranges, each gene's initial standard deviation ``sigma0`` times its range; a row per generation
+(its population's costs, the best seen so far)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from zrp_ga.algorithms import Algorithm, Result
+from zrp_ga.config import ConfigError, PopulationConf, section
+
+
+class CMAES(Algorithm):
+    def __init__(self, population, sigma0: float) -> None:
+        super().__init__()
+        self.pop_conf: PopulationConf = section(PopulationConf, population, "population")
+        if not (np.isfinite(sigma0) and sigma0 > 0):
+            raise ConfigError(f"algorithm.sigma0: must be a number > 0, got {sigma0}")
+        self.sigma0 = sigma0
+
+    def initialize(self) -> None:
+        import cma
+
+        p, c = self.problem, self.pop_conf
+        options = {
+            "bounds": [list(p.lower), list(p.upper)], "CMA_stds": list(p.upper - p.lower), "popsize": c.lambda_,
+            "seed": int(self.rng.integers(1, 2**31 - 1)), "verbose": -9, "tolfun": 0, "tolx": 0, "tolfunhist": 0,
+            "maxiter": c.generations if c.generations is not None else np.inf,
+            "maxfevals": c.max_evals if c.max_evals is not None else np.inf,
+        }  # fmt: skip
+        self.es = cma.CMAEvolutionStrategy(np.zeros(p.lower.size), self.sigma0, options)
+        self._generation()
+        self.initial = (self.X.copy(), self.costs.copy())
+
+    def step(self) -> None:
+        self.gen += 1
+        self._generation()
+
+    def _generation(self) -> None:
+        self.X = np.array(self.es.ask())
+        self.costs = self.toolbox.evaluate(self.X)
+        self.nevals += len(self.X)
+        self.n_nonfinite = int(self.costs.size - np.isfinite(self.costs).sum())
+        self.es.tell(list(self.X), list(np.where(np.isfinite(self.costs), self.costs, np.finfo(float).max)))
+        self.offer(self.X, self.costs)
+        self.stop_reason = ", ".join(self.es.stop())
+
+    def fraction_done(self) -> float | None:
+        c = self.pop_conf
+        return max((self.gen + 1) / c.generations if c.generations else 0.0, self.nevals / c.max_evals if c.max_evals else 0.0)
+
+    def result(self) -> Result:
+        return Result(self.best_x, self.best_cost, self.nevals, self.stop_reason, *self.initial)

@@ -1,0 +1,44 @@
+"""The pseudo-inverse step (the paper's step 8) as an operator on a batch of genomes.
+
+Each genome ``x`` moves to ``x + pinv(J) r`` with the residual ``r`` and Jacobian ``J`` of the
+problem at ``x``: for the linear cost one step reaches the least-squares solution, for the
+nonlinear cost it is a Gauss-Newton step. Singular values below ``rcond * s_max`` are cut off,
+so that unidentifiable directions are left where they are. When the step would carry a gene
+out of its range (clipping it would undo the step), it is taken by bounded linear least squares
+instead (``scipy.optimize.lsq_linear``), which uses the unidentifiable directions to stay inside.
+A genome whose Jacobian cannot be factorised (NaN genes) is left as it is.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zrp_ga.operators import batched
+from zrp_ga.problem import CalibrationProblem
+
+Array = NDArray[np.float64]
+
+
+def step(problem: CalibrationProblem, x: Array, rcond: float) -> Array:
+    """The step for one genome ``x`` (K,)."""
+    J, r = problem.jacobian(x), problem.residual(x)
+    new = x + np.linalg.lstsq(J, r, rcond=rcond)[0]
+    if np.all((new >= problem.lower) & (new <= problem.upper)):
+        return new
+    from scipy.optimize import lsq_linear
+
+    return x + lsq_linear(J, r, bounds=(problem.lower - x, problem.upper - x)).x
+
+
+@batched
+def pinv(X: Array, rng: np.random.Generator, problem: CalibrationProblem, rcond: float = 1e-9) -> tuple[Array]:
+    """Every row of ``X`` (N, K) takes the pseudo-inverse step, in place (``rng`` unused: the
+    step is deterministic)."""
+    with np.errstate(all="ignore"):
+        for k in range(X.shape[0]):
+            try:
+                X[k] = step(problem, X[k], rcond)
+            except np.linalg.LinAlgError:  # a degenerate genome: leave it to selection
+                continue
+    return (X,)

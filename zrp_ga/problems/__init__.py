@@ -1,0 +1,61 @@
+"""Problem kinds: what the config's ``problem`` group builds. Each kind is one module here with a
+``build(robot, seed, **settings) -> Task`` function and one config file in ``conf/problem``
+naming it by ``_target_`` (and a schema in :mod:`zrp_ga.config`).
+
+A :class:`Task` is a problem instance (:class:`zrp_ga.problem.CalibrationProblem`, what the
+optimisers see) with what judges its answers (:class:`zrp_ga.metrics.Judge`: validation poses,
+the truth in simulation) and what a run writes about it beyond the common files.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zrp_ga.config import ProblemConf
+from zrp_ga.layout import Layout
+from zrp_ga.metrics import Judge
+from zrp_ga.problem import CalibrationProblem
+from zrp_ga.robot import ZRPRobot
+
+Array = NDArray[np.float64]
+
+
+@dataclasses.dataclass
+class Task:
+    """A calibration problem instance, named, with its judge; ``robot`` is the arm as given
+    (before any registration), ``info`` goes into ``summary.json``."""
+
+    name: str
+    problem: CalibrationProblem
+    judge: Judge
+    robot: ZRPRobot
+    info: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+    @property
+    def truth(self) -> Array | None:
+        return self.judge.truth
+
+    def calibrated_robot(self, x: Array) -> ZRPRobot:
+        p = self.problem
+        return p.layout.robot(p.nominal, x, name=f"{p.nominal.name} calibrated")
+
+    def report(self, x: Array) -> dict[str, Any]:
+        """Entries of this kind for ``summary.json`` about the calibrated genome ``x``."""
+        return {}
+
+    def write(self, out: Path, x: Array) -> None:
+        """Files of this kind beyond the common ones."""
+
+
+def half_ranges(c: ProblemConf, layout: Layout) -> Array:
+    """Half widths (K,) of the gene ranges: ``axis_error`` on the axes and the hand (rad),
+    ``body_error`` on the body vectors and the base point (m), times ``search_scale``."""
+    half = np.empty(layout.size)
+    for name, block in layout.blocks.items():
+        half[block] = c.axis_error if name in ("u0", "hand") else c.body_error
+    return half * c.search_scale

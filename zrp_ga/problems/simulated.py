@@ -1,0 +1,37 @@
+"""Simulated problems: the paper's case study and its multi-pose forms (``problem=paper``,
+``problem=multipose``): a true robot drawn around the nominal one, calibration and validation
+poses measured on it (:mod:`zrp_ga.simulation`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from zrp_ga import metrics, simulation
+from zrp_ga.config import SimulatedConf, section
+from zrp_ga.layout import Layout
+from zrp_ga.metrics import Judge
+from zrp_ga.problem import CalibrationProblem
+from zrp_ga.problems import Task, half_ranges
+from zrp_ga.robot import ZRPRobot
+
+
+def build(robot: ZRPRobot, seed: int, **settings) -> Task:
+    """The instance of ``settings`` (``zrp_ga.config.SimulatedConf``'s keys) for ``robot``.
+    The problem draws from a random stream of its own, ``[problem.seed or seed, 1]``: with the
+    optimiser's, the first genome would be the true errors."""
+    c: SimulatedConf = section(SimulatedConf, settings, "problem")
+    layout = Layout(robot.n, base=c.identify_base, hand=c.identify_hand)
+    instance_seed = seed if c.seed is None else c.seed
+    sim = simulation.simulate(
+        robot, layout, np.random.default_rng([instance_seed, 1]), n_poses=c.n_poses, n_validation=c.n_validation,
+        axis_error=c.axis_error, body_error=c.body_error, joint_noise=c.joint_noise, position_noise=c.position_noise,
+        orientation_noise=c.orientation_noise, position_only=c.position_only,
+    )  # fmt: skip
+    half = half_ranges(c, layout)
+    problem = CalibrationProblem(robot, sim.calibration, layout, -half, half, c.cost, c.norm, c.orientation_weight)
+    validation = sim.validation if c.n_validation else None
+    q = sim.calibration.q if validation is None else np.vstack([sim.calibration.q, validation.q])
+    projector = metrics.identifiable_projector(robot, layout, q, c.position_only)
+    name = c.name or f"{robot.name}-{c.n_poses}pose{'s' if c.n_poses > 1 else ''}-{c.cost.value}-seed{instance_seed}"
+    return Task(name, problem, Judge(layout, robot, validation, sim.true_x, projector), robot,
+                info={"kind": "simulated", "seed": instance_seed})  # fmt: skip
