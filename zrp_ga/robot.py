@@ -24,6 +24,9 @@ from zrp_ga import so3
 UNIT_TOL = 1e-9
 # Joint range assumed when a robot states none: revolute rad, prismatic m.
 DEFAULT_LIMITS = {"R": (-np.pi, np.pi), "P": (0.0, 0.5)}
+# Robot files with larger numbers are refused as absurd (zrp_ga.robot_files): m, rad (16 turns).
+MAX_LENGTH_M = 1e4
+MAX_ANGLE_RAD = 100.0
 
 
 def _array(name: str, value: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
