@@ -1,6 +1,6 @@
 """zrp_ga: genetic-algorithm calibration of serial robot kinematics on the Zero Reference
-Position model. Modules: so3, robot, robots, kinematics, error_model, problem, operators, ga,
-baselines, records, config, build, callbacks, app (see the README)."""
+Position model. Modules: so3, robot, robots, robot_files (with dh, urdf), kinematics, error_model,
+problem, operators, ga, baselines, records, config, build, callbacks, app (see the README)."""
 
 from importlib import metadata
 

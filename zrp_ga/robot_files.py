@@ -18,14 +18,15 @@
     base: {xyz: [0, 0, 0], rpy: [0, 0, 0]}   # optional: pose of DH frame 0 in the world
     tool: {xyz: [0, 0, 100], quaternion_xyzw: [0, 0, 0, 1]}   # optional: hand pose in frame n
 
-Joint rows: ``type`` R (revolute: theta = q + theta) or P (prismatic: d = q + d, theta fixed);
-``a``, ``alpha``, ``d`` required; ``theta`` defaults to 0, ``name`` to ``joint_<i>``, ``limits``
-(lower < upper, in the angle unit for R and the length unit for P) to
-:data:`~zrp_ga.robot.DEFAULT_LIMITS`. ``base`` and ``tool`` take ``xyz`` (length unit, default
+Joint rows: ``type`` R (revolute: the joint angle is ``theta + q``) or P (prismatic: the offset
+along z is ``d + q``, theta fixed); ``a``, ``alpha``, ``d`` required; ``theta`` defaults to 0,
+``name`` to ``joint_<i>``, ``limits`` (lower < upper, in the angle unit for R and the length unit
+for P) to :data:`~zrp_ga.robot.DEFAULT_LIMITS`. ``base`` and ``tool`` take ``xyz`` (length unit, default
 0) with either ``rpy`` (angle unit; URDF's roll-pitch-yaw, ``R = Rz(yaw) Ry(pitch) Rx(roll)``)
 or ``quaternion_xyzw`` (x, y, z, w: scalar last, as scipy and ROS; normalised if within 1e-3 of
 unit length), or ``matrix``: a 4x4 homogeneous matrix (translation in the length unit; rotation
-orthonormal to 1e-6). Plain numbers only; numbers beyond 1e4 m or 100 rad are refused as absurd.
+orthonormal to 1e-6). Numbers are plain YAML numbers (``1e-3`` too, which YAML 1.1 would read as
+text); beyond 1e4 m or 100 rad they are refused as absurd.
 
 **ZRP YAML**: what :meth:`ZRPRobot.to_yaml` writes (keys ``u0``, ``b0``, ...; metres).
 
