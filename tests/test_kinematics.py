@@ -4,11 +4,13 @@ import pytest
 from dh_reference import dh_fk
 from zrp_ga import kinematics, robots
 from zrp_ga.robot import ZRPRobot
+from zrp_ga.robot_files import read_dh
 
 
 @pytest.mark.parametrize("name", robots.names())
 def test_forward_matches_independent_dh_chain(name, rng):
-    robot, table = robots.get(name), robots.dh_table(name)
+    robot, dh = robots.get(name), read_dh(robots.path(name))
+    table = dict(d=dh.d, a=dh.a, alpha=dh.alpha, offset=dh.theta, joint_types=dh.joint_types)
     Q = rng.uniform(-np.pi, np.pi, size=(25, robot.n))
     Q[:, robot.prismatic] = rng.uniform(0.3, 1.2, size=(25, robot.prismatic.sum()))
     R, p = kinematics.forward(robot, Q)

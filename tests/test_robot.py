@@ -70,3 +70,52 @@ def test_malformed_yaml_names_file_and_problem(tmp_path, text, message):
     with pytest.raises(ValueError, match=message) as info:
         ZRPRobot.from_yaml(path)
     assert str(path) in str(info.value)
+
+
+NAMED = dict(GOOD, joint_types="RP", joint_names=["shoulder", "slide"], limits=[[-2.0, 2.5], [0.1, 0.9]])
+
+
+def test_names_and_limits_survive_yaml_replace_transform_and_tool(tmp_path):
+    robot = ZRPRobot(**NAMED)
+    path = tmp_path / "arm.yaml"
+    robot.to_yaml(path)
+    R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    for other in (
+        ZRPRobot.from_yaml(path),
+        robot.replace(name="other"),
+        robot.transformed(R, [1.0, 2.0, 3.0]),
+        robot.with_tool([0.0, 0.0, 0.1]),
+    ):
+        assert other.joint_names == ("shoulder", "slide")
+        assert np.array_equal(other.limits, [[-2.0, 2.5], [0.1, 0.9]])
+
+
+def test_default_limits_follow_the_joint_types():
+    robot = ZRPRobot(**{**GOOD, "joint_types": "RP"})
+    assert robot.limits is None and robot.joint_names is None
+    np.testing.assert_array_equal(robot.joint_limits, [[-np.pi, np.pi], [0.0, 0.5]])
+    assert "limits" not in robot.to_dict() and "joint_names" not in robot.to_dict()
+
+
+def test_limits_are_read_only():
+    with pytest.raises(ValueError):
+        ZRPRobot(**NAMED).limits[0, 0] = 0.0
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (dict(limits=[[-1.0, 1.0]]), r"limits: expected shape \(2, 2\), got \(1, 2\)"),
+        (dict(limits=[[1.0, -1.0], [0.0, 0.5]]), "limits: joint 1 has lower 1 >= upper -1"),
+        (dict(limits=[[0.0, 0.0], [0.0, 0.5]]), "limits: joint 1 has lower 0 >= upper 0"),
+        (dict(limits=[[-1.0, np.inf], [0.0, 0.5]]), r"limits: NaN or inf at index \(0, 1\)"),
+        (dict(joint_names=["a"]), "joint_names: expected a list of 2 names"),
+        (dict(joint_names="ab"), "joint_names: expected a list of 2 names"),
+        (dict(joint_names=["a", ""]), "joint_names: joint 2 has no name"),
+        (dict(joint_names=["a", 3]), "joint_names: joint 2 has no name"),
+        (dict(joint_names=["a", "a"]), "joint_names: 'a' names joints 1 and 2"),
+    ],
+)
+def test_bad_names_or_limits_are_refused(change, message):
+    with pytest.raises(ValueError, match=message):
+        ZRPRobot(**{**GOOD, **change})

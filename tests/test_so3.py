@@ -36,3 +36,12 @@ def test_left_jacobian_matches_finite_differences(rng):
     R = Rotation.from_rotvec
     W = (R(phi + h * d).as_matrix() - R(phi - h * d).as_matrix()) / (2 * h) @ R(phi).as_matrix().T
     np.testing.assert_allclose(so3.vee(W), so3.left_jacobian(phi) @ d, atol=1e-8)
+
+
+def test_rpy_rebuilds_the_rotation_also_at_gimbal_lock(rng):
+    angles = [rng.uniform(-np.pi, np.pi, 3) for _ in range(50)]
+    for pitch in (np.pi / 2, -np.pi / 2, np.pi / 2 - 1e-9, -np.pi / 2 + 3e-8, np.pi / 2 - 1e-6, 0.0):
+        angles.append([0.3, pitch, -1.2])
+    for a in angles:
+        R = Rotation.from_euler("xyz", a).as_matrix()  # URDF's R = Rz(yaw) Ry(pitch) Rx(roll)
+        np.testing.assert_allclose(Rotation.from_euler("xyz", so3.rpy(R)).as_matrix(), R, atol=2e-15)

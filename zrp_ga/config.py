@@ -212,7 +212,9 @@ class MeasuredConf(ProblemConf):
 class RobotConf:
     _target_: str = "zrp_ga.robots.load"
     name: Optional[str] = "puma560"  # a preset
-    file: Optional[str] = None  # or a robot file (takes precedence)
+    file: Optional[str] = None  # or a robot file: DH/MDH table, ZRP YAML or URDF (takes precedence)
+    base_link: Optional[str] = None  # URDF: the chain's first link (null: the root)
+    tip_link: Optional[str] = None  # URDF: its last link (null: the single leaf)
 
 
 # --- the whole config ----------------------------------------------------------------------------

@@ -1,10 +1,12 @@
 """The ZRP description of a serial arm, its validation, DH conversion and YAML form.
 
 A :class:`ZRPRobot` holds, for the reference position q = 0 and in the world frame
-(DESIGN.md section 1): the unit joint axes ``u0`` (n, 3), the body vectors ``b0`` (n+1, 3)
+(docs/model.md, section 1): the unit joint axes ``u0`` (n, 3), the body vectors ``b0`` (n+1, 3)
 (``b0[0]`` from the world origin to a point on axis 1, ``b0[i]`` from the point on axis i to the
 point on axis i+1, ``b0[n]`` to the end-effector point), the hand orientation ``R_h0`` (3, 3)
 and the joint types, ``"R"`` (revolute, rad) or ``"P"`` (prismatic, m). Lengths are metres.
+Optional: the joint names and the joint limits (n, 2), lower and upper, rad or m;
+:attr:`ZRPRobot.joint_limits` fills in :data:`DEFAULT_LIMITS` where none are given.
 """
 
 from __future__ import annotations
@@ -20,6 +22,11 @@ from numpy.typing import ArrayLike, NDArray
 from zrp_ga import so3
 
 UNIT_TOL = 1e-9
+# Joint range assumed when a robot states none: revolute rad, prismatic m.
+DEFAULT_LIMITS = {"R": (-np.pi, np.pi), "P": (0.0, 0.5)}
+# Robot files with larger numbers are refused as absurd (zrp_ga.robot_files): m, rad (16 turns).
+MAX_LENGTH_M = 1e4
+MAX_ANGLE_RAD = 100.0
 
 
 def _array(name: str, value: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
@@ -41,11 +48,15 @@ class ZRPRobot:
     """A serial arm in the Zero Reference Position model; validates itself on construction.
 
     ``normalize=True`` rescales joint axes that are not of unit length; by default such axes
-    are refused. Arrays are copied and made read-only.
+    are refused. Arrays are copied and made read-only. ``joint_names`` (n distinct strings) and
+    ``limits`` (n, 2: lower < upper, rad for revolute and m for prismatic joints) are optional
+    (None); :attr:`joint_limits` is always an (n, 2) array.
 
     >>> r = ZRPRobot(u0=[[0, 0, 1]], b0=[[0, 0, 0.5], [1.0, 0, 0]], joint_types="R")
     >>> r.n, r.b0.shape
     (1, (2, 3))
+    >>> r.joint_limits
+    array([[-3.14159265,  3.14159265]])
     """
 
     u0: NDArray[np.float64]
@@ -53,6 +64,8 @@ class ZRPRobot:
     R_h0: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.eye(3))
     joint_types: str = ""
     name: str = "robot"
+    joint_names: tuple[str, ...] | None = None
+    limits: NDArray[np.float64] | None = None
     normalize: dataclasses.InitVar[bool] = False
 
     def __post_init__(self, normalize: bool) -> None:
@@ -81,10 +94,13 @@ class ZRPRobot:
         for i, t in enumerate(types):
             if t not in "RP":
                 raise ValueError(f"joint_types: joint {i + 1} is {t!r}, expected 'R' or 'P'")
-        for attr, value in (("u0", u0), ("b0", b0), ("R_h0", R_h0)):
-            value.setflags(write=False)
+        limits = None if self.limits is None else _limits(self.limits, n)
+        for attr, value in (("u0", u0), ("b0", b0), ("R_h0", R_h0), ("limits", limits)):
+            if value is not None:
+                value.setflags(write=False)
             object.__setattr__(self, attr, value)
         object.__setattr__(self, "joint_types", types)
+        object.__setattr__(self, "joint_names", _joint_names(self.joint_names, n))
 
     @property
     def n(self) -> int:
@@ -95,6 +111,14 @@ class ZRPRobot:
     def prismatic(self) -> NDArray[np.bool_]:
         """(n,) True where the joint is prismatic."""
         return np.array([t == "P" for t in self.joint_types])
+
+    @property
+    def joint_limits(self) -> NDArray[np.float64]:
+        """(n, 2) lower and upper joint values, rad or m: ``limits``, or :data:`DEFAULT_LIMITS`
+        by joint type when the robot states none."""
+        if self.limits is not None:
+            return self.limits
+        return np.array([DEFAULT_LIMITS[t] for t in self.joint_types])
 
     def replace(self, **changes) -> ZRPRobot:
         """A copy with some fields changed (validated again)."""
@@ -127,12 +151,15 @@ class ZRPRobot:
         tool: ArrayLike | None = None,
         base: ArrayLike | None = None,
         name: str = "robot",
+        joint_names: Sequence[str] | None = None,
+        limits: ArrayLike | None = None,
     ) -> ZRPRobot:
         """From a standard (distal) DH table: ``A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``.
 
         ``theta_i = q_i + offset_i`` for a revolute joint, ``d_i + q_i`` for a prismatic one;
         joint i turns about the z axis of frame i-1. ``base`` and ``tool`` are optional 4x4
         transforms before the first and after the last link. Lengths m, angles rad.
+        ``joint_names`` and ``limits`` are passed on to the robot.
         """
         n = len(d)
         offset = np.zeros(n) if offset is None else np.asarray(offset, dtype=float)
@@ -140,7 +167,8 @@ class ZRPRobot:
         for i in range(n):
             frames.append(frames[-1] @ _dh(offset[i], d[i], a[i], alpha[i]))
         axis_frames = frames[:-1]  # joint i turns about z of frame i-1
-        return cls._from_frames(axis_frames, frames[-1], tool, joint_types, name)
+        extra = dict(joint_names=joint_names, limits=limits)
+        return cls._from_frames(axis_frames, frames[-1], tool, joint_types, name, **extra)
 
     @classmethod
     def from_mdh(
@@ -153,6 +181,8 @@ class ZRPRobot:
         tool: ArrayLike | None = None,
         base: ArrayLike | None = None,
         name: str = "robot",
+        joint_names: Sequence[str] | None = None,
+        limits: ArrayLike | None = None,
     ) -> ZRPRobot:
         """From a modified (proximal, Craig) DH table: ``A_i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)``.
 
@@ -166,27 +196,35 @@ class ZRPRobot:
         for i in range(n):
             T = T @ _rx(alpha[i]) @ _tx(a[i]) @ _rz(offset[i]) @ _tz(d[i])
             frames.append(T)
-        return cls._from_frames(frames, frames[-1], tool, joint_types, name)
+        extra = dict(joint_names=joint_names, limits=limits)
+        return cls._from_frames(frames, frames[-1], tool, joint_types, name, **extra)
 
     @classmethod
-    def _from_frames(cls, axis_frames, last, tool, joint_types, name) -> ZRPRobot:
-        """Walk the chain at q = 0: axes are the z axes, points the origins (DESIGN.md section 1)."""
+    def _from_frames(cls, axis_frames, last, tool, joint_types, name, **extra) -> ZRPRobot:
+        """Walk the chain at q = 0: axes are the z axes, points the origins (docs/model.md, section 1)."""
         end = last if tool is None else last @ _array("tool", tool, (4, 4))
         points = np.array([F[:3, 3] for F in axis_frames] + [end[:3, 3]])
         u0 = np.array([F[:3, 2] for F in axis_frames])
         b0 = np.diff(np.vstack([np.zeros(3), points]), axis=0)
-        return cls(u0=u0, b0=b0, R_h0=end[:3, :3], joint_types=joint_types or "", name=name, normalize=True)
+        return cls(
+            u0=u0, b0=b0, R_h0=end[:3, :3], joint_types=joint_types or "", name=name, normalize=True, **extra
+        )
 
     # --- YAML --------------------------------------------------------------------------------
     def to_dict(self) -> dict:
-        """Plain-Python form, the same as the YAML file."""
-        return {
+        """Plain-Python form, the same as the YAML file (``joint_names`` and ``limits`` only when given)."""
+        data = {
             "name": self.name,
             "joint_types": self.joint_types,
             "u0": self.u0.tolist(),
             "b0": self.b0.tolist(),
             "R_h0": self.R_h0.tolist(),
         }
+        if self.joint_names is not None:
+            data["joint_names"] = list(self.joint_names)
+        if self.limits is not None:
+            data["limits"] = self.limits.tolist()
+        return data
 
     @classmethod
     def from_dict(cls, data: dict, source: str = "dict", normalize: bool = False) -> ZRPRobot:
@@ -196,7 +234,7 @@ class ZRPRobot:
         missing = [k for k in ("u0", "b0") if k not in data]
         if missing:
             raise ValueError(f"{source}: missing key(s) {', '.join(missing)}")
-        unknown = set(data) - {"name", "joint_types", "u0", "b0", "R_h0"}
+        unknown = set(data) - {"name", "joint_types", "u0", "b0", "R_h0", "joint_names", "limits"}
         if unknown:
             raise ValueError(f"{source}: unknown key(s) {', '.join(sorted(unknown))}")
         try:
@@ -206,6 +244,8 @@ class ZRPRobot:
                 R_h0=data.get("R_h0", np.eye(3)),
                 joint_types=data.get("joint_types", ""),
                 name=str(data.get("name", "robot")),
+                joint_names=data.get("joint_names"),
+                limits=data.get("limits"),
                 normalize=normalize,
             )
         except ValueError as exc:
@@ -230,6 +270,29 @@ class ZRPRobot:
 
     def __repr__(self) -> str:
         return f"ZRPRobot(name={self.name!r}, n={self.n}, joint_types={self.joint_types!r})"
+
+
+def _joint_names(names: Sequence[str] | None, n: int) -> tuple[str, ...] | None:
+    """``names`` as a tuple of n distinct non-empty strings (None stays None)."""
+    if names is None:
+        return None
+    if isinstance(names, str) or not isinstance(names, Sequence) or len(names) != n:
+        raise ValueError(f"joint_names: expected a list of {n} names, got {names!r}")
+    for i, name in enumerate(names):
+        if not isinstance(name, str) or not name.strip():
+            raise ValueError(f"joint_names: joint {i + 1} has no name (got {name!r})")
+        if name in names[:i]:
+            raise ValueError(f"joint_names: {name!r} names joints {names.index(name) + 1} and {i + 1}")
+    return tuple(names)
+
+
+def _limits(limits: ArrayLike, n: int) -> NDArray[np.float64]:
+    """``limits`` as an (n, 2) array of finite lower < upper."""
+    a = _array("limits", limits, (n, 2))
+    for i, (lower, upper) in enumerate(a):
+        if not lower < upper:
+            raise ValueError(f"limits: joint {i + 1} has lower {lower:.6g} >= upper {upper:.6g}")
+    return a
 
 
 def _rz(t: float) -> NDArray[np.float64]:

@@ -2,7 +2,7 @@
 
 Rodrigues' formula as Eq. (6-8) of the paper, ``R = V A + S B + I``, its derivative with
 respect to the components of the (not necessarily unit) axis, Eq. (9-10), and the small
-helpers around it: skew, vee, and the rotation-vector logarithm.
+helpers around it: skew, vee, the rotation-vector logarithm and URDF's roll-pitch-yaw angles.
 
 Shapes: ``R3`` is ``(..., 3)``, ``SO3`` is ``(..., 3, 3)``; angles in rad.
 """
@@ -35,7 +35,7 @@ def vee(W: ArrayLike) -> R3:
     """Vector of the skew part of ``W`` (..., 3, 3): ``vee((W - W^T) / 2)``, elements (3,2), (1,3), (2,1).
 
     Taking the skew part first makes the result immune to round-off in a nearly skew ``W``
-    (DESIGN.md section 2).
+    (docs/model.md, section 2).
 
     >>> vee(skew([0.1, -0.2, 0.3]))
     array([ 0.1, -0.2,  0.3])
@@ -95,3 +95,20 @@ def left_jacobian(phi: ArrayLike) -> SO3:
     if t < 1e-8:
         return _E + 0.5 * K + K @ K / 6.0
     return _E + (1.0 - np.cos(t)) / t**2 * K + (t - np.sin(t)) / t**3 * K @ K
+
+
+def rpy(R: ArrayLike) -> R3:
+    """Roll, pitch, yaw (3,), rad, of a rotation (3, 3), URDF's ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
+
+    Exact to round-off everywhere, also next to pitch = +-90 degrees, where scipy's ``as_euler``
+    loses up to 1e-8 (its gimbal-lock branch): yaw first from the first column, then pitch and roll
+    from ``Rz(-yaw) R = Ry(pitch) Rx(roll)``, whose entries are well conditioned.
+
+    >>> np.round(rpy(Rotation.from_euler("xyz", [0.1, 0.2, 0.3]).as_matrix()), 12)
+    array([0.1, 0.2, 0.3])
+    """
+    R = np.asarray(R, dtype=float)
+    yaw = np.arctan2(R[1, 0], R[0, 0])
+    c, s = np.cos(yaw), np.sin(yaw)
+    M = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]) @ R
+    return np.array([np.arctan2(-M[1, 2], M[1, 1]), np.arctan2(-M[2, 0], M[0, 0]), yaw]) + 0.0  # no -0.0

@@ -1,0 +1,396 @@
+"""Robot files in and out: DH / modified-DH table files, ZRP YAML files and URDF.
+
+- :func:`read_robot` reads any of the three into a :class:`~zrp_ga.robot.ZRPRobot`;
+  :func:`read_dh` reads a DH table file into a :class:`~zrp_ga.dh.DHTable`.
+- :func:`to_urdf`, :func:`dh_to_yaml` (with :func:`~zrp_ga.dh.to_dh`, re-exported here) and
+  :meth:`ZRPRobot.to_yaml` write them; :func:`write_robot_files` writes all of them at once.
+
+**DH table file** (YAML; keys as below, anything else is refused)::
+
+    name: myarm                        # optional; default: the file name without suffix
+    convention: dh                     # dh: standard (distal), A_i = Rz(theta) Tz(d) Tx(a) Rx(alpha)
+                                       # mdh: modified (proximal, Craig), A_i = Rx(alpha) Tx(a) Rz(theta) Tz(d),
+                                       #      where row i holds a_{i-1} and alpha_{i-1}
+    units: {length: mm, angle: deg}    # required; length m or mm, angle rad or deg
+    joints:                            # one row per joint, from the base
+      - {name: joint_1, type: R, a: 0, alpha: 90, d: 400, theta: 0, limits: [-170, 170]}
+      - {name: slide, type: P, a: 0, alpha: 0, d: 0, theta: -90, limits: [300, 1200]}
+    base: {xyz: [0, 0, 0], rpy: [0, 0, 0]}   # optional: pose of DH frame 0 in the world
+    tool: {xyz: [0, 0, 100], quaternion_xyzw: [0, 0, 0, 1]}   # optional: hand pose in frame n
+
+Joint rows: ``type`` R (revolute: the joint angle is ``theta + q``) or P (prismatic: the offset
+along z is ``d + q``, theta fixed); ``a``, ``alpha``, ``d`` required; ``theta`` defaults to 0,
+``name`` to ``joint_<i>``, ``limits`` (lower < upper, in the angle unit for R and the length unit
+for P) to :data:`~zrp_ga.robot.DEFAULT_LIMITS`. ``base`` and ``tool`` take ``xyz`` (length unit, default
+0) with either ``rpy`` (angle unit; URDF's roll-pitch-yaw, ``R = Rz(yaw) Ry(pitch) Rx(roll)``)
+or ``quaternion_xyzw`` (x, y, z, w: scalar last, as scipy and ROS; normalised if within 1e-3 of
+unit length), or ``matrix``: a 4x4 homogeneous matrix (translation in the length unit; rotation
+orthonormal to 1e-6). Numbers are plain YAML numbers (``1e-3`` too, which YAML 1.1 would read as
+text); beyond 1e4 m or 100 rad they are refused as absurd.
+
+**ZRP YAML**: what :meth:`ZRPRobot.to_yaml` writes (keys ``u0``, ``b0``, ...; metres).
+
+**URDF**: read with yourdfpy and written with ElementTree, the mapping of docs/model.md, section 5;
+see :mod:`zrp_ga.urdf` (its :func:`~zrp_ga.urdf.to_urdf` is re-exported here).
+
+Every bad input raises ValueError with one line naming the file and the line and column (YAML),
+the line (XML) or the joint, and what is wrong.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import yaml
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from zrp_ga import so3
+from zrp_ga.dh import CONVENTIONS, DHMismatch, DHTable, to_dh
+from zrp_ga.robot import DEFAULT_LIMITS, MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
+from zrp_ga.urdf import check_transform, read_urdf, to_urdf
+
+__all__ = ["read_robot", "read_dh", "dh_to_yaml", "to_dh", "to_urdf", "write_robot_files", "DHTable", "DHMismatch"]
+
+Array = NDArray[np.float64]
+LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
+ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180}
+
+
+def read_robot(path: str | Path, base_link: str | None = None, tip_link: str | None = None) -> ZRPRobot:
+    """The robot in a DH table file, a ZRP YAML file or a URDF (module docstring).
+
+    ``.urdf`` and ``.xml`` files are URDF, ``.yaml`` and ``.yml`` files a DH table (key
+    ``joints``) or a ZRP robot (key ``u0``); other suffixes are URDF if the text starts with
+    ``<``. ``base_link`` and ``tip_link`` choose the chain in a URDF (defaults: the root link and
+    its single leaf).
+
+    >>> from zrp_ga import robots
+    >>> read_robot(robots.path("puma560"))
+    ZRPRobot(name='puma560', n=6, joint_types='RRRRRR')
+    """
+    path, text = _read_text(path)
+    if _is_urdf(path, text):
+        return read_urdf(path, text, base_link, tip_link)
+    if base_link is not None or tip_link is not None:
+        raise ValueError(f"{path}: base_link and tip_link apply to URDF files only")
+    doc = _Yaml(path, text)
+    top = doc.mapping(doc.root, "the file")
+    if "joints" in top:
+        return _dh_table(doc).to_robot()
+    if "u0" in top:
+        return _zrp_robot(doc, top)
+    raise doc.error(doc.root, "neither a DH table (key 'joints') nor a ZRP robot (keys 'u0', 'b0')")
+
+
+def read_dh(path: str | Path) -> DHTable:
+    """The table in a DH table file (module docstring), in metres and radians."""
+    return _dh_table(_Yaml(*_read_text(path)))
+
+
+def _read_text(path: str | Path) -> tuple[Path, str]:
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"{path}: no such file")
+    if path.is_dir():
+        raise ValueError(f"{path}: is a directory, expected a robot file (.yaml, .yml or .urdf)")
+    try:
+        return path, path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a text file (not UTF-8)") from None
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def _is_urdf(path: Path, text: str) -> bool:
+    if path.suffix.lower() == ".xacro":
+        raise ValueError(f"{path}: a xacro file; expand it to URDF first (xacro {path.name} > robot.urdf)")
+    if path.suffix.lower() in (".yaml", ".yml"):
+        return False
+    return path.suffix.lower() in (".urdf", ".xml") or text.lstrip().startswith("<")
+
+
+# --- YAML with line and column ----------------------------------------------------------------
+class _Yaml:
+    """A YAML document composed with its node marks, so that errors name line and column."""
+
+    def __init__(self, path: Path, text: str) -> None:
+        self.path = path
+        try:
+            self.root = yaml.compose(text, Loader=yaml.SafeLoader)
+        except yaml.MarkedYAMLError as exc:
+            mark = exc.problem_mark or exc.context_mark
+            raise self.error(mark, f"malformed YAML: {exc.problem or exc.context}") from None
+        except yaml.YAMLError as exc:
+            raise ValueError(_one_line(f"{path}: malformed YAML ({exc})")) from None
+        if self.root is None:
+            raise ValueError(f"{path}: empty file")
+
+    def error(self, where: yaml.Node | yaml.Mark, message: str) -> ValueError:
+        """ValueError naming the file, the line and column of ``where`` and the message."""
+        m = where.start_mark if isinstance(where, yaml.Node) else where
+        return ValueError(_one_line(f"{self.path}, line {m.line + 1}, column {m.column + 1}: {message}"))
+
+    def mapping(self, node: yaml.Node, what: str, known: tuple[str, ...] | None = None) -> dict[str, yaml.Node]:
+        """Key -> value node of a mapping node; unknown (if ``known`` is given) or repeated keys refused."""
+        if not isinstance(node, yaml.MappingNode):
+            raise self.error(node, f"{what}: expected a mapping (key: value)")
+        out: dict[str, yaml.Node] = {}
+        for key_node, value in node.value:
+            key = key_node.value if isinstance(key_node, yaml.ScalarNode) else None
+            if known is not None and key not in known:
+                raise self.error(key_node, f"{what}: unknown key {key!r} (known: {', '.join(known)})")
+            if key in out:
+                raise self.error(key_node, f"{what}: key {key!r} given twice")
+            out[key] = value
+        return out
+
+    def need(self, mapping: dict[str, yaml.Node], node: yaml.Node, key: str, what: str) -> yaml.Node:
+        """The value of a required key."""
+        if key not in mapping:
+            raise self.error(node, f"{what}: missing key {key!r}")
+        return mapping[key]
+
+    def text(self, node: yaml.Node, what: str, choices: tuple[str, ...] | None = None) -> str:
+        if not isinstance(node, yaml.ScalarNode) or not node.value.strip():
+            raise self.error(node, f"{what}: expected a name")
+        if choices is not None and node.value not in choices:
+            raise self.error(node, f"{what}: {node.value!r}, expected one of {', '.join(choices)}")
+        return node.value
+
+    def number(self, node: yaml.Node, what: str, scale: float = 1.0, bound: float = MAX_LENGTH_M) -> float:
+        """A plain number times ``scale`` (to SI units); finite and below ``bound`` (SI) in size."""
+        plain_str = node.tag == "tag:yaml.org,2002:str" and node.style is None  # 1e-3: a string in YAML 1.1
+        if not isinstance(node, yaml.ScalarNode) or not (node.tag.endswith((":int", ":float")) or plain_str):
+            raise self.error(node, f"{what}: expected a number")
+        try:
+            value = float(node.value if plain_str else yaml.constructor.SafeConstructor().construct_object(node))
+        except ValueError:
+            raise self.error(node, f"{what}: expected a number, got {node.value!r}") from None
+        if not np.isfinite(value):
+            raise self.error(node, f"{what}: {node.value} is not a finite number")
+        if abs(value * scale) > bound:
+            raise self.error(node, f"{what}: {node.value} is absurd (more than {bound:g} in SI units)")
+        return value * scale
+
+    def numbers(
+        self, node: yaml.Node, what: str, count: int, scale: float = 1.0, bound: float = MAX_LENGTH_M
+    ) -> Array:
+        """A list of ``count`` numbers (see :meth:`number`)."""
+        if not isinstance(node, yaml.SequenceNode) or len(node.value) != count:
+            got = f"{len(node.value)} entries" if isinstance(node, yaml.SequenceNode) else "no list"
+            raise self.error(node, f"{what}: expected a list of {count} numbers, got {got}")
+        return np.array([self.number(v, f"{what}[{k}]", scale, bound) for k, v in enumerate(node.value)])
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())
+
+
+# --- DH table files ---------------------------------------------------------------------------
+def _dh_table(doc: _Yaml) -> DHTable:
+    """The DH table of a composed DH file (module docstring)."""
+    top = doc.mapping(doc.root, "the file", ("name", "convention", "units", "joints", "base", "tool"))
+    convention = doc.text(doc.need(top, doc.root, "convention", "the file"), "convention", CONVENTIONS)
+    length, angle = _units(doc, doc.need(top, doc.root, "units", "the file (e.g. units: {length: m, angle: deg})"))
+    nodes = doc.need(top, doc.root, "joints", "the file")
+    if not isinstance(nodes, yaml.SequenceNode) or not nodes.value:
+        raise doc.error(nodes, "joints: expected a list of joint rows, one per joint")
+    rows = [_dh_row(doc, node, i, length, angle) for i, node in enumerate(nodes.value)]
+    names = [row.name for row in rows]
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise doc.error(nodes.value[i], f"joint {i + 1}: name {name!r} is joint {names.index(name) + 1}'s already")
+    limits = None
+    if any(row.limits is not None for row in rows):
+        limits = [DEFAULT_LIMITS[row.type] if row.limits is None else row.limits for row in rows]
+    poses = {key: _pose(doc, top[key], key, length, angle) for key in ("base", "tool") if key in top}
+    name = doc.text(top["name"], "name") if "name" in top else doc.path.stem
+    a, alpha, d, theta = (np.array([getattr(row, k) for row in rows]) for k in ("a", "alpha", "d", "theta"))
+    types = "".join(row.type for row in rows)
+    try:
+        return DHTable(
+            convention, a, alpha, d, theta, types, name=name, joint_names=tuple(names), limits=limits, **poses
+        )
+    except ValueError as exc:  # not expected after the checks above; named all the same
+        raise doc.error(doc.root, str(exc)) from None
+
+
+class _Row(NamedTuple):
+    """One joint row of a DH file, SI units."""
+
+    name: str
+    type: str
+    a: float
+    alpha: float
+    d: float
+    theta: float
+    limits: Array | None
+
+
+def _units(doc: _Yaml, node: yaml.Node) -> tuple[float, float]:
+    """(metres per length unit, radians per angle unit) of a ``units`` mapping."""
+    units = doc.mapping(node, "units", ("length", "angle"))
+    length = doc.text(doc.need(units, node, "length", "units"), "units: length", tuple(LENGTH_UNITS))
+    angle = doc.text(doc.need(units, node, "angle", "units"), "units: angle", tuple(ANGLE_UNITS))
+    return LENGTH_UNITS[length], ANGLE_UNITS[angle]
+
+
+def _dh_row(doc: _Yaml, node: yaml.Node, i: int, length: float, angle: float) -> _Row:
+    """Joint row i of a DH file; ``length``, ``angle``: metres and radians per file unit."""
+    row = doc.mapping(node, f"joint {i + 1}", ("name", "type", "a", "alpha", "d", "theta", "limits"))
+    name = doc.text(row["name"], f"joint {i + 1}: name") if "name" in row else f"joint_{i + 1}"
+    what = f"joint {i + 1} ({name})"
+    kind = doc.text(doc.need(row, node, "type", what), f"{what}: type", ("R", "P"))
+    a, d = (doc.number(doc.need(row, node, k, what), f"{what}: {k}", length) for k in ("a", "d"))
+    alpha = doc.number(doc.need(row, node, "alpha", what), f"{what}: alpha", angle, MAX_ANGLE_RAD)
+    theta = doc.number(row["theta"], f"{what}: theta", angle, MAX_ANGLE_RAD) if "theta" in row else 0.0
+    limits = None
+    if "limits" in row:
+        unit, bound = (angle, MAX_ANGLE_RAD) if kind == "R" else (length, MAX_LENGTH_M)
+        limits = doc.numbers(row["limits"], f"{what}: limits", 2, unit, bound)
+        if not limits[0] < limits[1]:
+            raise doc.error(row["limits"], f"{what}: limits: lower must be below upper")
+    return _Row(name, kind, a, alpha, d, theta, limits)
+
+
+def _pose(doc: _Yaml, node: yaml.Node, what: str, length: float, angle: float) -> Array:
+    """4x4 transform of a ``base`` or ``tool`` entry (module docstring), SI units."""
+    keys = doc.mapping(node, what, ("xyz", "rpy", "quaternion_xyzw", "matrix"))
+    if "matrix" in keys:
+        if len(keys) > 1:
+            raise doc.error(node, f"{what}: give either matrix or xyz with rpy or quaternion_xyzw")
+        return _matrix(doc, keys["matrix"], f"{what}: matrix", length)
+    if "rpy" in keys and "quaternion_xyzw" in keys:
+        raise doc.error(node, f"{what}: give either rpy or quaternion_xyzw")
+    T = np.eye(4)
+    if "xyz" in keys:
+        T[:3, 3] = doc.numbers(keys["xyz"], f"{what}: xyz", 3, length)
+    if "rpy" in keys:
+        rpy = doc.numbers(keys["rpy"], f"{what}: rpy", 3, angle, MAX_ANGLE_RAD)
+        T[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()  # URDF's convention
+    if "quaternion_xyzw" in keys:
+        q = doc.numbers(keys["quaternion_xyzw"], f"{what}: quaternion_xyzw", 4, 1.0, 2.0)
+        if abs(np.linalg.norm(q) - 1.0) > 1e-3:
+            length = np.linalg.norm(q)
+            raise doc.error(keys["quaternion_xyzw"], f"{what}: quaternion_xyzw has length {length:.6g}, not 1")
+        T[:3, :3] = Rotation.from_quat(q).as_matrix()
+    return T
+
+
+def _matrix(doc: _Yaml, node: yaml.Node, what: str, length: float) -> Array:
+    """A 4x4 homogeneous matrix (translation in the length unit), rotation orthonormal to 1e-6."""
+    if not isinstance(node, yaml.SequenceNode) or len(node.value) != 4:
+        raise doc.error(node, f"{what}: expected 4 rows of 4 numbers")
+    T = np.array([doc.numbers(row, f"{what} row {k + 1}", 4) for k, row in enumerate(node.value)])
+    R = T[:3, :3]
+    if np.abs(T[3] - [0, 0, 0, 1]).max() > 1e-9:
+        raise doc.error(node.value[3], f"{what}: the last row must be 0 0 0 1")
+    if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
+        hint = "use xyz with rpy for rounded values"
+        raise doc.error(node, f"{what}: not a rotation (R^T R != I to 1e-6, or det < 0); {hint}")
+    if np.abs(R.T @ R - np.eye(3)).max() > 1e-12:
+        T[:3, :3] = Rotation.from_matrix(R).as_matrix()  # the nearest rotation
+    T[:3, 3] *= length
+    return T
+
+
+def dh_to_yaml(
+    table: DHTable, path: str | Path | None = None, length: str = "m", angle: str = "deg", comment: str = ""
+) -> str:
+    """Text of a DH table file (module docstring) in the given units, ``comment`` lines on top;
+    also written to ``path`` if given. Each number is written as the shortest decimal within 8
+    units in the last place of its value in the file's unit (0.0203, not 0.020300000000000012), so
+    reading the file back gives the table to about 1e-15 relative.
+
+    >>> from zrp_ga import robots
+    >>> table, _ = to_dh(robots.get("ur10"))
+    >>> print(dh_to_yaml(table).splitlines()[4])
+      - {name: shoulder_pan_joint, type: R, a: 0.0, alpha: 90.0, d: 0.1273, theta: 0.0, limits: [-360.0, 360.0]}
+    """
+    if length not in LENGTH_UNITS or angle not in ANGLE_UNITS:
+        raise ValueError(f"units: length {length!r}, angle {angle!r}; expected m or mm, rad or deg")
+    L, A = LENGTH_UNITS[length], ANGLE_UNITS[angle]
+    names = table.joint_names or tuple(f"joint_{i + 1}" for i in range(table.n))
+    lines = [f"# {line}" if line else "#" for line in comment.splitlines()]
+    head = {"name": table.name, "convention": table.convention, "units": {"length": length, "angle": angle}}
+    lines += [yaml.safe_dump(head, sort_keys=False, default_flow_style=None).rstrip(), "joints:"]
+    for i, kind in enumerate(table.joint_types):
+        row = {"name": names[i], "type": kind, "a": _short(table.a[i] / L), "alpha": _short(table.alpha[i] / A),
+               "d": _short(table.d[i] / L), "theta": _short(table.theta[i] / A)}
+        if table.limits is not None:
+            row["limits"] = _short(np.asarray(table.limits[i]) / (A if kind == "R" else L))
+        lines.append("  - " + yaml.safe_dump(row, default_flow_style=True, sort_keys=False, width=10**9).strip())
+    for key in ("base", "tool"):
+        T = getattr(table, key)
+        pose = {"xyz": _short(T[:3, 3] / L), "rpy": _short(so3.rpy(T[:3, :3]) / A)}
+        lines.append(yaml.safe_dump({key: pose}, sort_keys=False, default_flow_style=None).rstrip())
+    text = "\n".join(lines) + "\n"
+    if path is not None:
+        Path(path).write_text(text)
+    return text
+
+
+def _short(x: ArrayLike) -> float | list:
+    """x (a number or array) as the floats of shortest decimal form within 8 units in the last place."""
+    x = np.asarray(x, dtype=float)
+    steps = np.arange(-8, 9)
+    near = x[..., None] + np.spacing(x)[..., None] * steps
+    digits = np.vectorize(lambda v: len(repr(float(v))))(near) + np.abs(steps) / 100  # ties: the nearest
+    best = np.take_along_axis(near, np.argmin(digits, axis=-1)[..., None], axis=-1)[..., 0] + 0.0
+    return best.tolist()
+
+
+# --- ZRP YAML ----------------------------------------------------------------------------------
+def _zrp_robot(doc: _Yaml, top: dict[str, yaml.Node]) -> ZRPRobot:
+    """A ZRP robot file (:meth:`ZRPRobot.to_yaml`), errors at the offending key's line."""
+    data = yaml.constructor.SafeConstructor().construct_document(doc.root)
+    try:
+        robot = ZRPRobot.from_dict(data, source="robot")
+    except ValueError as exc:
+        detail = str(exc).removeprefix("robot: ")
+        raise doc.error(top.get(detail.split(":")[0], doc.root), detail) from None
+    if np.abs(robot.b0).max() > MAX_LENGTH_M:
+        raise doc.error(top["b0"], f"b0: a length of {np.abs(robot.b0).max():g} m is absurd")
+    return robot
+
+
+# --- all files after a calibration -------------------------------------------------------------
+def write_robot_files(
+    robot: ZRPRobot, out_dir: str | Path, stem: str = "calibrated_robot",
+    base: ArrayLike | None = None, tool: ArrayLike | None = None,
+) -> dict[str, Path]:
+    """Write the arm as URDF, DH table file, ZRP YAML, and the base and tool transforms.
+
+    Files in ``out_dir``: ``<stem>.urdf`` (with ``base`` and ``tool`` as fixed joints when given,
+    :func:`to_urdf`), ``<stem>_dh.yaml`` (standard DH, m and deg, the mismatch of
+    :func:`to_dh` in its header comment), ``<stem>.yaml`` (ZRP, :meth:`ZRPRobot.to_yaml`) and
+    ``<stem>_frames.yaml``: ``base`` and ``tool`` (identity when not given), each as a 4x4
+    ``matrix``, ``xyz`` (m) and ``quaternion_xyzw`` (x, y, z, w: scalar last). The DH and ZRP
+    files hold the arm alone. Returns {"urdf", "dh", "zrp", "frames"} -> path.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"urdf": out / f"{stem}.urdf", "dh": out / f"{stem}_dh.yaml",
+             "zrp": out / f"{stem}.yaml", "frames": out / f"{stem}_frames.yaml"}
+    to_urdf(robot, paths["urdf"], base, tool)
+    table, mismatch = to_dh(robot)
+    header = f"Standard DH table of {robot.name} (zrp_ga.robot_files.to_dh): {mismatch}"
+    dh_to_yaml(table, paths["dh"], comment="\n".join([header, *mismatch.notes]))
+    robot.to_yaml(paths["zrp"])
+    poses = {"base": base, "tool": tool}
+    frames = {k: _frame_entry(np.eye(4) if T is None else check_transform(T, k)) for k, T in poses.items()}
+    comment = (
+        "# base: pose of the robot's world frame (URDF link base_link) in the outer frame (link world);\n"
+        "# tool: pose of the tool frame (link tool) in the hand frame (link hand). Lengths m;\n"
+        "# quaternion_xyzw: x, y, z, w (scalar last, as scipy and ROS).\n"
+    )
+    paths["frames"].write_text(comment + yaml.safe_dump(frames, sort_keys=False, default_flow_style=None))
+    return paths
+
+
+def _frame_entry(T: Array) -> dict:
+    xyzw = Rotation.from_matrix(T[:3, :3]).as_quat()
+    return {"matrix": T.tolist(), "xyz": T[:3, 3].tolist(), "quaternion_xyzw": xyzw.tolist()}
