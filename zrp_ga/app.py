@@ -48,9 +48,10 @@ def _task_config(cfg: DictConfig) -> DictConfig:
     return OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]) if "hydra" in cfg else cfg
 
 
-def prepare(cfg: DictConfig, out: Path) -> Prepared:
-    """Check ``cfg`` and build its objects, before any work and before ``out`` is created; with
-    ``resume``, the checkpoint's config instead. Every error names what is wrong in one line."""
+def prepare(cfg: DictConfig, out: Path | None) -> Prepared:
+    """Check ``cfg`` and build its objects, before any work and before ``out`` is created (None:
+    no run directory); with ``resume``, the checkpoint's config instead. Every error names what
+    is wrong in one line."""
     global _prepared
     cfg = _task_config(cfg)
     key = OmegaConf.to_yaml(cfg) + str(out)
@@ -59,7 +60,7 @@ def prepare(cfg: DictConfig, out: Path) -> Prepared:
     state = None
     if cfg.get("resume"):
         out, state, cfg = _resume(cfg)
-    elif any((out / f).exists() for f in RUN_FILES):
+    elif out is not None and any((out / f).exists() for f in RUN_FILES):
         raise ConfigError(f"output directory {out} already holds a run; choose another hydra.run.dir, "
                           f"or continue it with resume={out}")  # fmt: skip
     if cfg.checkpoint_every < 0:
