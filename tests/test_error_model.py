@@ -100,3 +100,16 @@ def test_slide_direction_really_leaves_poses_unchanged(rng):
     b0[3] -= 0.05 * robot.u0[2]
     q = rng.uniform(-np.pi, np.pi, size=(10, 6))
     np.testing.assert_allclose(kinematics.forward(robot.replace(b0=b0), q)[1], kinematics.forward(robot, q)[1], atol=1e-14)
+
+
+@pytest.mark.parametrize("name", ["puma560", "ur10", "stanford"])
+def test_compiled_jacobian_equals_the_numpy_reference(name, rng):
+    """Also for axes that are not unit vectors (a genome's axes before normalisation)."""
+    robot = robots.get(name)
+    u0 = robot.u0 + rng.normal(scale=0.02, size=robot.u0.shape)
+    q = rng.uniform(-3, 3, size=(40, robot.n))
+    q[:, robot.prismatic] = rng.uniform(0.1, 0.5, size=(40, int(robot.prismatic.sum())))
+    for base, hand in ((False, False), (True, True)):
+        fast = error_model.jacobian_arrays(u0, robot.b0, robot.prismatic, q, base, hand)
+        slow = error_model.jacobian_reference(u0, robot.b0, robot.prismatic, q, base, hand)
+        np.testing.assert_allclose(fast, slow, atol=1e-13 * np.abs(slow).max())
