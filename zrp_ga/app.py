@@ -60,9 +60,11 @@ def prepare(cfg: DictConfig, out: Path | None) -> Prepared:
     state = None
     if cfg.get("resume"):
         out, state, cfg = _resume(cfg)
-    elif out is not None and any((out / f).exists() for f in RUN_FILES):
-        raise ConfigError(f"output directory {out} already holds a run; choose another hydra.run.dir, "
-                          f"or continue it with resume={out}")  # fmt: skip
+    elif out is not None:
+        _check_writable(out)
+        if any((out / f).exists() for f in RUN_FILES):
+            raise ConfigError(f"output directory {out} already holds a run; choose another hydra.run.dir, "
+                              f"or continue it with resume={out}")  # fmt: skip
     if cfg.checkpoint_every < 0:
         raise ConfigError(f"checkpoint_every: must be >= 0, got {cfg.checkpoint_every}")
     robot = config.instantiate(cfg.robot, "robot")
@@ -73,6 +75,18 @@ def prepare(cfg: DictConfig, out: Path | None) -> Prepared:
     prepared = Prepared(cfg, task, algorithm, state, out)
     _prepared = (key, prepared)
     return prepared
+
+
+def _check_writable(out: Path) -> None:
+    """The run directory ``out`` can be created and written: no file in the way, and the first
+    existing folder on the way to it is writable."""
+    for folder in (out, *out.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                raise ConfigError(f"hydra.run.dir: cannot create {out}: {folder} is a file, not a directory")
+            if not os.access(folder, os.W_OK | os.X_OK):
+                raise ConfigError(f"hydra.run.dir: cannot write into {folder} (permission denied)")
+            return
 
 
 def _resume(cfg: DictConfig) -> tuple[Path, dict, DictConfig]:
