@@ -53,7 +53,8 @@ def _pack(A, p0, w, Ab):  # pragma: no cover - compiled
 
 @jit(inline="always")
 def _chunk(U, B, H, p0, w, Ub, Bb, Hb):  # pragma: no cover - compiled
-    """Pack lanes p0 .. p0 + w of U, B, H (C order) into Ub (n, 3, LANES), Bb (n+1, 3, LANES), Hb (3, 3, LANES)."""
+    """Pack lanes p0 .. p0 + w of U, B, H (C order) into Ub (n, 3, LANES), Bb (n+1, 3, LANES),
+    Hb (3, 3, LANES)."""
     n, P = U.shape[0], U.shape[2]
     _pack(U.reshape(3 * n, P), p0, w, Ub.reshape(3 * n, LANES))
     _pack(B.reshape(3 * n + 3, P), p0, w, Bb.reshape(3 * n + 3, LANES))
@@ -73,28 +74,25 @@ def _rotate(c, s, v, ux, uy, uz, x, y, z):  # pragma: no cover - compiled
 def _chain_rodrigues(Ub, Bb, Hb, c, s, t, X, w):  # pragma: no cover - compiled
     """X of one pose from the tail, float64; c, s, t (n,) of the pose. 129 flops per joint."""
     n = Ub.shape[0]
-    x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11 = X[0], X[1], X[2], X[3], X[4], X[5], X[6], X[7], X[8], X[9], X[10], X[11]
-    b0, b1, b2 = Bb[n, 0], Bb[n, 1], Bb[n, 2]
-    h00, h01, h02, h10, h11, h12, h20, h21, h22 = Hb[0, 0], Hb[0, 1], Hb[0, 2], Hb[1, 0], Hb[1, 1], Hb[1, 2], Hb[2, 0], Hb[2, 1], Hb[2, 2]
     for p in range(w):
-        x0[p], x1[p], x2[p] = b0[p], b1[p], b2[p]
-        x3[p], x4[p], x5[p] = h00[p], h10[p], h20[p]
-        x6[p], x7[p], x8[p] = h01[p], h11[p], h21[p]
-        x9[p], x10[p], x11[p] = h02[p], h12[p], h22[p]
+        for k in range(3):
+            X[k, p] = Bb[n, k, p]
+            for j in range(3):
+                X[3 + 3 * j + k, p] = Hb[k, j, p]
     for j in range(n):
-        i = n - 1 - j
+        i = n - 1 - j  # not range(n - 1, -1, -1): the lane loop inside it stayed scalar
         ci, si, ti = c[i], s[i], t[i]
         vi = 1.0 - ci
-        Ux, Uy, Uz, Bx, By, Bz = Ub[i, 0], Ub[i, 1], Ub[i, 2], Bb[i, 0], Bb[i, 1], Bb[i, 2]
+        u, b = Ub[i], Bb[i]
         for p in range(w):
-            ux, uy, uz = Ux[p], Uy[p], Uz[p]
-            x0[p], x1[p], x2[p] = _rotate(ci, si, vi, ux, uy, uz, x0[p], x1[p], x2[p])
-            x3[p], x4[p], x5[p] = _rotate(ci, si, vi, ux, uy, uz, x3[p], x4[p], x5[p])
-            x6[p], x7[p], x8[p] = _rotate(ci, si, vi, ux, uy, uz, x6[p], x7[p], x8[p])
-            x9[p], x10[p], x11[p] = _rotate(ci, si, vi, ux, uy, uz, x9[p], x10[p], x11[p])
-            x0[p] += Bx[p] + ti * ux
-            x1[p] += By[p] + ti * uy
-            x2[p] += Bz[p] + ti * uz
+            ux, uy, uz = u[0, p], u[1, p], u[2, p]
+            X[0, p], X[1, p], X[2, p] = _rotate(ci, si, vi, ux, uy, uz, X[0, p], X[1, p], X[2, p])
+            X[3, p], X[4, p], X[5, p] = _rotate(ci, si, vi, ux, uy, uz, X[3, p], X[4, p], X[5, p])
+            X[6, p], X[7, p], X[8, p] = _rotate(ci, si, vi, ux, uy, uz, X[6, p], X[7, p], X[8, p])
+            X[9, p], X[10, p], X[11, p] = _rotate(ci, si, vi, ux, uy, uz, X[9, p], X[10, p], X[11, p])
+            X[0, p] += b[0, p] + ti * ux
+            X[1, p] += b[1, p] + ti * uy
+            X[2, p] += b[2, p] + ti * uz
 
 
 @jit(inline="always")
@@ -199,8 +197,9 @@ def residual_matrix(U, B, H, c, s, v, t, p_meas, wp, R_meas, use_rot, out, k0, k
     """:func:`residual_rodrigues` by the matrix form, in the arithmetic type of c, s, v, t (M, n)
     (float32 or float64); the residuals and sums are float64."""
     n, P = U.shape[0], U.shape[2]
-    Ub, Bb, Hb = np.empty((n, 3, LANES), c.dtype), np.empty((n + 1, 3, LANES), c.dtype), np.empty((3, 3, LANES), c.dtype)
-    X, acc = np.empty((12, LANES), c.dtype), np.empty((2, LANES))
+    ft = c.dtype  # the arithmetic type
+    Ub, Bb, Hb = np.empty((n, 3, LANES), ft), np.empty((n + 1, 3, LANES), ft), np.empty((3, 3, LANES), ft)
+    X, acc = np.empty((12, LANES), ft), np.empty((2, LANES))
     for k in range(k0, k1):
         p0 = k * LANES
         w = min(P - p0, LANES)

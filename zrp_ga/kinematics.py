@@ -213,7 +213,8 @@ def residual_sums_unchecked(
         fn, args = _kernels.residual_rodrigues, (U, B, H, c, s, t, p_meas, wp, R, use_rot, out)
     else:
         ft = np.float32 if kernel == "float32" else np.float64
-        fn, args = _kernels.residual_matrix, (U, B, H, *(a.astype(ft) for a in (c, s, 1.0 - c, t)), p_meas, wp, R, use_rot, out)
+        c, s, v, t = (a.astype(ft) for a in (c, s, 1.0 - c, t))
+        fn, args = _kernels.residual_matrix, (U, B, H, c, s, v, t, p_meas, wp, R, use_rot, out)
     _run_chunks(fn, args, P, M, threads)
     return out
 
