@@ -19,15 +19,15 @@ because no numpy formulation of the many tiny 3-vector updates came near (1.1 M 
 evaluations per second with numpy, 9 M with one compiled loop per parameter set and pose).
 
 The pose costs have three kernels (``kernel=``, see :mod:`zrp_ga._kernels` and
-experiments/bench_kinematics.py for their speeds):
+experiments/README.md, section f, for their speeds; ranges of three runs):
 
 - ``"rodrigues"`` (default): the arithmetic above, operation for operation: bit-identical to
-  zrp_ga 0.1 and to :func:`forward_batch`, about 1.3-1.5 x the speed of 0.1's kernel;
+  zrp_ga 0.1 and to :func:`forward_batch`, 1.3-1.4 x the speed of 0.1's kernel;
 - ``"matrix"``: float64, the rotation accumulated from the base as a 3x3 matrix (594 instead of
-  828 flops per 6-joint pose) with fused multiply-add: about 2.2-3 x; costs differ from
+  828 flops per 6-joint pose) with fused multiply-add: 2.2-2.5 x; costs differ from
   ``"rodrigues"`` in the last bits (relative 2e-14 to 3e-14 on the GA's costs);
-- ``"float32"``: the matrix form in float32, the residuals and their sums in float64: about
-  3.2-4.7 x; its costs carry errors of a few 1e-7 m (or rad) per pose, enough to rank a GA
+- ``"float32"``: the matrix form in float32, the residuals and their sums in float64:
+  3.6-4.0 x; its costs carry errors of a few 1e-7 m (or rad) per pose, enough to rank a GA
   population, not for least squares or the pseudo-inverse step near convergence.
 """
 
