@@ -1,4 +1,5 @@
-"""Compiled kernels behind :mod:`zrp_ga.kinematics`: hand poses and pose costs of a population.
+"""Compiled pose-cost kernels behind :mod:`zrp_ga.kinematics` (its hand poses come from
+:func:`kinematics._chain`): the squared pose errors of a population summed over the poses.
 
 Layout: the population is the last axis, U (n, 3, P), B (n+1, 3, P), H (3, 3, P) for the axes,
 body vectors and hand orientations of P parameter sets; per pose and joint the numbers
@@ -10,7 +11,7 @@ into local buffers whose rows are ``LANES`` long, a compile-time constant, and e
 the lanes of a chunk is the innermost loop. With the row length known, LLVM proves the rows of a
 buffer apart and vectorises those loops (SIMD over parameter sets, the pose's numbers fixed);
 with the row length read at run time it needed more run-time alias checks than it allows and left
-the loops scalar. A chunk's buffers (about 14 kB for a 6-joint arm in float64) stay in L1 across
+the loops scalar. A chunk's buffers (about 16 kB for a 6-joint arm in float64) stay in L1 across
 all poses. Two more things keep the loops vectorised: the helpers are inlined into one function
 (``inline="always"``), and no loop counts down (``range(n - 1, -1, -1)`` around the lane loop
 left it scalar).
