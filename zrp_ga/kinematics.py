@@ -115,8 +115,16 @@ def _population(u0: ArrayLike, b0: ArrayLike, R_h0: ArrayLike) -> tuple[Array, A
     R_h0 = np.asarray(R_h0, dtype=float)
     if R_h0.shape not in ((3, 3), (P, 3, 3)):
         raise ValueError(f"R_h0: expected shape (3, 3) or ({P}, 3, 3), got {R_h0.shape}")
-    H = np.ascontiguousarray(np.broadcast_to(R_h0, (P, 3, 3)).transpose(1, 2, 0))
-    return np.ascontiguousarray(u0.transpose(1, 2, 0)), np.ascontiguousarray(b0.transpose(1, 2, 0)), H
+    H = np.broadcast_to(R_h0, (P, 3, 3)).transpose(1, 2, 0)
+    return _kernel_array(u0.transpose(1, 2, 0)), _kernel_array(b0.transpose(1, 2, 0)), _kernel_array(H)
+
+
+def _kernel_array(a: ArrayLike, dtype: type = np.float64) -> NDArray:
+    """``a`` as a C-ordered, writable array of ``dtype``, copied only if it is not one already:
+    numba compiles a kernel anew for each layout and for read-only arrays (a robot's arrays,
+    broadcast views), a few seconds each."""
+    a = np.ascontiguousarray(a, dtype=dtype)
+    return a if a.flags.writeable else a.copy()
 
 
 def joint_terms(q: Array, prismatic: ArrayLike | None) -> tuple[Array, Array, Array]:
@@ -202,12 +210,12 @@ def residual_sums_unchecked(
     """
     if kernel not in KERNELS:
         raise ValueError(f"kernel: unknown kernel {kernel!r}; known: {', '.join(KERNELS)}")
-    U, B, H, p_meas = (np.ascontiguousarray(a, dtype=float) for a in (U, B, H, p_meas))
+    U, B, H, p_meas = (_kernel_array(a) for a in (U, B, H, p_meas))
     P, M = U.shape[2], p_meas.shape[0]
     use_rot = R_meas is not None
-    R = np.ascontiguousarray(R_meas, dtype=float) if use_rot else np.zeros((M, 3, 3))
-    wp = np.ones((M, 3)) if weights is None else np.ascontiguousarray(weights, dtype=float)
-    c, s, t = (np.ascontiguousarray(a, dtype=float) for a in terms)
+    R = _kernel_array(R_meas) if use_rot else np.zeros((M, 3, 3))
+    wp = np.ones((M, 3)) if weights is None else _kernel_array(weights)
+    c, s, t = (_kernel_array(a) for a in terms)
     out = np.empty((2, P))
     if kernel == "rodrigues":
         fn, args = _kernels.residual_rodrigues, (U, B, H, c, s, t, p_meas, wp, R, use_rot, out)
