@@ -81,6 +81,13 @@ def _cache_usable() -> bool:
 CACHE = _cache_usable()
 
 
-def jit(fn):
-    """``numba.njit`` with the cache described in the module docstring."""
-    return njit(cache=CACHE)(fn)
+def jit(fn=None, **options):
+    """``numba.njit`` with the cache described in the module docstring; ``options`` go to
+    ``njit`` (e.g. ``fastmath``, ``inline``, ``nogil``), ``cache`` excepted.
+
+    Use as ``@jit`` or ``@jit(fastmath={"contract"})``."""
+    if "cache" in options:
+        raise TypeError("jit: the cache is this module's business; do not pass cache=")
+    if fn is None:
+        return lambda f: njit(cache=CACHE, **options)(f)
+    return njit(cache=CACHE, **options)(fn)
