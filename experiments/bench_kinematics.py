@@ -37,7 +37,9 @@ import numba
 import numpy as np
 
 from zrp_ga import _kernels, kinematics, robots
-from zrp_ga.problem import CalibrationProblem, Layout, Measurements
+from zrp_ga.layout import Layout
+from zrp_ga.measurements import Measurements
+from zrp_ga.problem import CalibrationProblem
 
 OUT = Path(__file__).resolve().parent / "results" / "bench_kinematics.md"
 CHAINS = 10  # independent accumulators in the peak benchmark

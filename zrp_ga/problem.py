@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga import error_model, kinematics, so3
-from zrp_ga.config import Cost, Norm
+from zrp_ga.config import Cost, Kernel, Norm
 from zrp_ga.layout import Layout
 from zrp_ga.measurements import Measurements
 from zrp_ga.robot import ZRPRobot
@@ -44,10 +44,11 @@ class CalibrationProblem:
     cost: Cost = Cost.nonlinear
     norm: Norm = Norm.spectral
     orientation_weight: float = 1.0
+    kernel: Kernel = Kernel.rodrigues  # which compiled cost evaluates a population (float64 unless float32)
 
     def __post_init__(self) -> None:
         K, n = self.layout.size, self.nominal.n
-        self.cost, self.norm = Cost(self.cost), Norm(self.norm)
+        self.cost, self.norm, self.kernel = Cost(self.cost), Norm(self.norm), Kernel(self.kernel)
         if self.layout.n != n:
             raise ValueError(f"layout: made for {self.layout.n} joints, the robot has {n}")
         if self.data.q.shape[1] != n:
@@ -85,7 +86,8 @@ class CalibrationProblem:
             else:
                 m = self.layout.unpack(self.nominal, X)
                 data = self.data
-                sums = kinematics.residual_sums_unchecked(m.U, m.B, m.H, self._terms, data.p, data.R, self._position_weights)
+                sums = kinematics.residual_sums_unchecked(m.U, m.B, m.H, self._terms, data.p, data.R,
+                                                          self._position_weights, kernel=self.kernel.value)  # fmt: skip
                 unit = 0.5 * (m.length2 - 1.0)
                 total = self.orientation_weight**2 * sums[0] + sums[1] + np.einsum("ip,ip->p", unit, unit)
             if self.norm is Norm.rms:

@@ -93,7 +93,7 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
     layout = Layout(robot.n, base=True, hand=bool(c.use_orientation))
     half = half_ranges(c, layout)
     data = calib.for_calibration(c.use_orientation, c.use_weights)
-    problem = CalibrationProblem(nominal, data, layout, -half, half, c.cost, c.norm, c.orientation_weight)
+    problem = CalibrationProblem(nominal, data, layout, -half, half, c.cost, c.norm, c.orientation_weight, c.kernel)
     validation = val.for_calibration() if val is not None else None
     name = c.name or f"{robot.name}-{Path(calib.source).stem}"
     files = {"calibration": calib.source, "validation": val.source if val is not None else None}

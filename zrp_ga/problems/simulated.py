@@ -28,7 +28,7 @@ def build(robot: ZRPRobot, seed: int, **settings) -> Task:
         orientation_noise=c.orientation_noise, position_only=c.position_only,
     )  # fmt: skip
     half = half_ranges(c, layout)
-    problem = CalibrationProblem(robot, sim.calibration, layout, -half, half, c.cost, c.norm, c.orientation_weight)
+    problem = CalibrationProblem(robot, sim.calibration, layout, -half, half, c.cost, c.norm, c.orientation_weight, c.kernel)
     validation = sim.validation if c.n_validation else None
     q = sim.calibration.q if validation is None else np.vstack([sim.calibration.q, validation.q])
     projector = metrics.identifiable_projector(robot, layout, q, c.position_only)
