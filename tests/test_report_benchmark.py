@@ -140,6 +140,26 @@ def test_two_configurations_get_the_sign_test(tmp_path):
     assert f["test"] == "sign test" and f["p"] == pytest.approx(2 * (5 + 1) / 2**5)  # P(X >= 4) + P(X <= 1)
 
 
+def test_costs_within_the_tightest_target_tie(tmp_path):
+    for i, (ga, lm, cma) in enumerate([(1.0, 1.005, 2.0), (1.0, 1.02, 2.0)]):  # 1.005 is within 1.01 x 1.0, 1.02 is not
+        for algorithm, cost in zip(("ga", "lm", "cmaes"), (ga, lm, cma)):
+            fake_run(tmp_path / f"{i}-{algorithm}", f"I{i}", algorithm, [(10, 5.0), (20, cost)])
+    f = _tables(tmp_path)["friedman"]
+    assert f["ranks"].loc["I0"].tolist() == [3.0, 1.5, 1.5] and f["ranks"].loc["I1"].tolist() == [3.0, 1.0, 2.0]  # CMA-ES, GA, LM
+
+
+def test_a_diverged_run_counts_hits_nothing_and_ranks_last(tmp_path):
+    fake_run(tmp_path / "ga", "A", "ga", [(10, 5.0), (20, 1.0)])
+    fake_run(tmp_path / "lm", "A", "lm", [(1, float("inf")), (5, float("inf"))], final=None)
+    fake_run(tmp_path / "ga2", "B", "ga", [(10, 5.0), (20, 2.0)])
+    fake_run(tmp_path / "lm2", "B", "lm", [(1, 4.0), (5, 3.0)])
+    t = _tables(tmp_path)
+    assert t["floors"].set_index("instance").loc["A", "floor"] == 1.0
+    ert = t["ert"].set_index(["configuration", "instance", "level"])["ert"]
+    assert math.isinf(ert[("Levenberg-Marquardt", "A", "1.5")]) and ert[("Levenberg-Marquardt", "all", "1.5")] == (5 + 5) / 1
+    assert t["friedman"]["mean_ranks"]["GA"] == 1.0 and t["friedman"]["test"] == "sign test"
+
+
 def test_ranks_need_two_instances_with_every_configuration(two_instances, tmp_path):
     t = _tables(two_instances)
     assert t["friedman"] is not None and t["friedman"]["instances"] == 2

@@ -41,8 +41,9 @@ Words and numbers
   within b evaluations over f_ref (a run that stopped earlier counts with its final best), the
   median over runs per instance, and the median of those over instances.
 - **Ranks across instances**: per instance the median final cost of each configuration, clipped
-  below at f_ref (below the floor there is nothing to tell apart), ranked (1 = lowest, ties
-  averaged) on the instances where every configuration ran; Friedman's test (the sign test for
+  below at the instance's tightest target (1.01 x f_ref by default: closer to the floor the
+  targets tell nothing apart, so such configurations tie), ranked (1 = lowest, ties averaged)
+  on the instances where every configuration ran; Friedman's test (the sign test for
   two configurations) and Nemenyi's post-hoc test with its critical difference at 0.05
   (:func:`zrp_ga.report.stats.friedman`).
 - **Within pooled runs**: median and interquartile range of the final cost, of final cost / f_ref

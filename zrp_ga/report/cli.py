@@ -22,6 +22,10 @@ if TYPE_CHECKING:
     from zrp_ga.report.runs import Run
     from zrp_ga.report.targets import TargetRule
 
+class ReportError(ValueError):
+    """What is wrong with the command's input, in one line (the command prints it and exits with 2)."""
+
+
 LEVELS = (1.5, 1.1, 1.05, 1.01)  # target levels c (targets c x f_ref)
 BUDGETS = (100, 1_000, 10_000)  # fixed budgets, evaluations
 ROUND_OFF = 1e-9  # a floor below ROUND_OFF x nominal cost is round-off
@@ -30,7 +34,8 @@ ROUND_OFF = 1e-9  # a floor below ROUND_OFF x nominal cost is round-off
 # same folder that this one does not write is removed, so that the folder never mixes two reports.
 STEMS = ("targets", "summary", "per_instance", "ert", "ecdf", "fixed_budget", "ranks", "statistics", "factors", "runs",
          "tidy", "left_out", "fig2_convergence", "convergence_by_configuration", "ecdf_evals_to_target",
-         "validation_error_boxplot", "critical_difference", "table2_initial_population", "table3_best_params")  # fmt: skip
+         "validation_error_boxplot", "critical_difference", "table2_initial_population", "table3_best_params",
+         "ranks_nemenyi")  # fmt: skip
 IOH = "ioh"
 
 
@@ -61,26 +66,28 @@ def _existing_ancestor(path: Path) -> Path:
 
 
 @contextlib.contextmanager
-def _staging(paths: list[str | Path], out: Path, ioh: Path | None) -> Iterator[Path]:
+def _staging(paths: list[str | Path], out: Path, ioh: Path) -> Iterator[Path]:
     """A temporary folder beside ``out``, removed on the way out; checks first that the ``paths``
-    are directories and that ``out`` (and ``ioh``) can be written (ValueError otherwise)."""
+    are directories, that ``out`` can be written and that ``ioh`` is new, empty or an earlier
+    export (ReportError otherwise)."""
     for p in paths:
         if not Path(p).exists():
-            raise ValueError(f"{p}: no such directory")
+            raise ReportError(f"{p}: no such directory")
         if not Path(p).is_dir():
-            raise ValueError(f"{p}: not a directory")
+            raise ReportError(f"{p}: not a directory")
     for flag, path in (("--out", out), ("--ioh", ioh)):
-        if path is not None and path.exists() and not path.is_dir():
-            raise ValueError(f"{flag} {path}: not a directory")
-    if ioh is not None and ioh.is_dir() and any(ioh.iterdir()) and not _is_ioh_export(ioh):
-        raise ValueError(f"--ioh {ioh}: holds other files than an IOHprofiler export; choose an empty or new folder")
+        if path.exists() and not path.is_dir():
+            raise ReportError(f"{flag} {path}: not a directory")
+    if ioh.is_dir() and not _is_ioh_export(ioh):
+        raise ReportError(f"{ioh}: holds files that are not an IOHprofiler export (the export would replace them); "
+                          "choose another --ioh folder")  # fmt: skip
     where = _existing_ancestor(out.resolve())
     if not where.is_dir():
-        raise ValueError(f"--out {out}: {where} is not a directory")
+        raise ReportError(f"--out {out}: {where} is not a directory")
     try:
         stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=where))
     except OSError as exc:
-        raise ValueError(f"--out {out}: cannot write in {where} ({exc.strerror})") from None
+        raise ReportError(f"--out {out}: cannot write in {where} ({exc.strerror})") from None
     try:
         yield stage
     finally:
@@ -91,9 +98,9 @@ def _is_ioh_export(path: Path) -> bool:
     return all(f.name.startswith("IOHprofiler_") and f.suffix in (".json", ".dat") for f in path.rglob("*") if f.is_file())
 
 
-def _publish(stage: Path, out: Path, ioh: Path | None) -> None:
+def _publish(stage: Path, out: Path, ioh: Path) -> None:
     """Move the staged report into ``out`` (files of an earlier report it no longer writes go),
-    the IOH export into ``ioh`` or ``out/ioh`` (replaced whole)."""
+    the IOH export into ``ioh`` (an earlier export there is replaced whole)."""
     out.mkdir(parents=True, exist_ok=True)
     written = {f.name for f in stage.iterdir() if f.is_file()}
     for f in out.iterdir():
@@ -101,11 +108,10 @@ def _publish(stage: Path, out: Path, ioh: Path | None) -> None:
             f.unlink()
     for name in written:
         os.replace(stage / name, out / name)
-    target = ioh if ioh is not None else out / IOH
-    if target.exists():
-        shutil.rmtree(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    shutil.move(str(stage / IOH), target)
+    if ioh.exists():
+        shutil.rmtree(ioh)
+    ioh.parent.mkdir(parents=True, exist_ok=True)
+    shutil.move(str(stage / IOH), ioh)
 
 
 def _write_tables(t: dict, stage: Path) -> None:
@@ -157,7 +163,8 @@ def _draw(runs: list[Run], t: dict, stage: Path, formats: tuple[str, ...], rule:
     figures.convergence_by_configuration(runs, labels, shown, scale, ylabel, note, stage, formats)
     if len(t["ecdf"]):
         what = ", ".join(rule.names()) + (" x f_ref" if rule.absolute is None else "")
-        figures.ecdf(t["ecdf"], [s for s in shown if s in set(t["ecdf"]["configuration"])], what, note, stage, formats)
+        ends = t["runs"].groupby("configuration")["nevals"].max().to_dict()
+        figures.ecdf(t["ecdf"], [s for s in shown if s in set(t["ecdf"]["configuration"])], ends, what, note, stage, formats)
     figures.validation_boxplot(t["runs"], shown, note, stage, formats)
     if t["friedman"] is not None:
         figures.critical_difference(t["friedman"], stage, formats)
@@ -193,12 +200,14 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
     """Build every table and figure of the runs under ``paths`` into ``out``, the IOHprofiler
     export into ``ioh`` (default ``out/ioh``); returns the tables. ``only``: ``KEY=VALUE``
     settings a run must have been given to count (e.g. ``refine=none``); ``target``: one
-    absolute target cost instead of ``levels`` x f_ref. Bad input is a ValueError (one line),
-    raised before anything is written."""
+    absolute target cost instead of ``levels`` x f_ref; ``formats``: of the figures (none: no
+    figures). Bad input is a ReportError (a
+    ValueError, one line), raised before anything is written."""
     if not paths:
-        raise ValueError("no directory given")
+        raise ReportError("no directory given")
     out = Path(out) if out is not None else Path(paths[0]) / "report"
-    with _staging(paths, out, Path(ioh) if ioh is not None else None) as stage:
+    ioh = Path(ioh) if ioh is not None else out / IOH
+    with _staging(paths, out, ioh) as stage:
         import pandas as pd
 
         from zrp_ga.report import figures, ioh_export
@@ -206,27 +215,34 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
         from zrp_ga.report.tables import build_tables
         from zrp_ga.report.targets import TargetRule
 
-        rule = TargetRule(tuple(levels), target, round_off)
+        from matplotlib.backend_bases import FigureCanvasBase
+
+        unknown = sorted(set(formats) - set(FigureCanvasBase.get_supported_filetypes()))
+        if unknown:
+            raise ReportError(f"--formats: {unknown[0]} is not a figure format "
+                              f"({', '.join(sorted(FigureCanvasBase.get_supported_filetypes()))})")  # fmt: skip
+        rule = TargetRule(tuple(dict.fromkeys(levels)), target, round_off)
         runs, left = find_runs(paths)
         wanted = parse_overrides(list(only))
         runs = [r for r in runs if _matches(r, wanted)]
         if not runs:
             reasons = "; ".join(f"{p}: {why}" for p, why in left) or "no convergence.csv found"
-            raise ValueError(f"no finished run under {', '.join(map(str, paths))}" + (f" with {' '.join(only)}" if only else "")
+            raise ReportError(f"no finished run under {', '.join(map(str, paths))}" + (f" with {' '.join(only)}" if only else "")
                              + f" ({reasons})")  # fmt: skip
         t = build_tables(runs, rule, tuple(budgets))
         t["rule"] = rule
         _write_tables(t, stage)
-        shown = _draw(runs, t, stage, tuple(formats), rule)
         chosen = median_runs(runs, t["labels"], list(t["summary"]["configuration"])[:4])
-        figures.convergence_runs(chosen, stage, tuple(formats))
+        shown = _draw(runs, t, stage, tuple(formats), rule) if formats else []
+        if formats:
+            figures.convergence_runs(chosen, stage, tuple(formats))
         unread = _paper_tables(chosen[0][1], stage)
         (stage / IOH).mkdir()
         left += ioh_export.export(runs, t["labels"], t["shown"], stage / IOH)
         left += [(p, "its file could not be read for Tables 2 and 3") for p in unread]
         t["left_out"] = pd.DataFrame(left, columns=["run", "reason"])
         t["left_out"].to_csv(stage / "left_out.csv", index=False)
-        _publish(stage, out, Path(ioh) if ioh is not None else None)
+        _publish(stage, out, ioh)
     t.update(shown_in_figures=shown, single_run=str(chosen[0][1].path), out=str(out))
     return t
 
@@ -288,12 +304,12 @@ def main(argv: list[str] | None = None) -> None:
                    help="fixed budgets in evaluations (default 100,1000,10000)")
     p.add_argument("--only", action="append", default=[], metavar="KEY=VALUE",
                    help="keep only the runs given this setting (repeatable), e.g. --only refine=none")
-    p.add_argument("--formats", default="png,pdf", help="figure formats (default png,pdf)")
+    p.add_argument("--formats", default="png,pdf", help="figure formats, e.g. png,pdf,svg (default png,pdf; none: no figures)")
     args = p.parse_args(argv)
     try:
         t = write_report(args.dirs, args.out, args.target, args.only, args.levels, args.budgets, args.round_off, args.ioh,
-                         tuple(f for f in args.formats.split(",") if f))  # fmt: skip
-    except ValueError as exc:
+                         tuple(f for f in args.formats.split(",") if f and f != "none"))  # fmt: skip
+    except ReportError as exc:
         p.exit(2, f"zrp-ga-report: error: {exc}\n")
     print(console(t))
 

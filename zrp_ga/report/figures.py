@@ -84,14 +84,17 @@ def convergence_by_configuration(runs: list[Run], labels: list[str], shown: list
     save(fig, out, "convergence_by_configuration", formats)
 
 
-def ecdf(curves_: pd.DataFrame, shown: list[str], what: str, note: str, out: Path, formats: tuple[str, ...]) -> None:
-    """The fixed-target ECDF per configuration (rows of :func:`zrp_ga.report.targets.ecdf`)."""
-    top = max(curves_["evaluations"].max(), 2.0)
+def ecdf(curves_: pd.DataFrame, shown: list[str], ends: dict[str, float], what: str, note: str, out: Path,
+         formats: tuple[str, ...]) -> None:  # fmt: skip
+    """The fixed-target ECDF per configuration (rows of :func:`zrp_ga.report.targets.ecdf`), each
+    drawn up to ``ends`` (its longest run, marked x as COCO does)."""
     fig = Figure(figsize=(7.5, 4.5 + 0.18 * len(shown)))
     ax = fig.subplots()
     for label in shown:
         c = curves_[curves_["configuration"] == label]
-        ax.step(np.r_[c["evaluations"], top], np.r_[c["fraction"], c["fraction"].iloc[-1]], where="post", label=label)
+        end = max(ends[label], c["evaluations"].max())
+        (line,) = ax.step(np.r_[c["evaluations"], end], np.r_[c["fraction"], c["fraction"].iloc[-1]], where="post", label=label)
+        ax.plot([end], [c["fraction"].iloc[-1]], "x", color=line.get_color())
     ax.set_xscale("log")
     ax.set_ylim(-0.01, 1.02)
     ax.set_xlabel("evaluations")

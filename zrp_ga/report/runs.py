@@ -53,7 +53,7 @@ class Run:
 
     @property
     def final_cost(self) -> float:
-        return _number(self.summary.get("final_cost"))
+        return number(self.summary.get("final_cost"))
 
     @property
     def nevals(self) -> int:
@@ -65,10 +65,10 @@ class Run:
 
     def validation_mm(self, which: str) -> float:
         """The RMS validation error (mm) of the ``nominal`` or ``calibrated`` model; NaN without validation."""
-        return _number((self.summary.get("validation_rms_mm") or {}).get(which))
+        return number((self.summary.get("validation_rms_mm") or {}).get(which))
 
 
-def _number(value: Any) -> float:
+def number(value: Any) -> float:
     """A JSON number as float; null (a non-finite number written by the app) as NaN."""
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
 
@@ -271,14 +271,16 @@ def _job(sweep: Path, job: dict) -> Run:
 def find_runs(paths: list[str | Path]) -> tuple[list[Run], list[tuple[str, str]]]:
     """Runs under ``paths`` (run directories, sweep directories, or folders holding them), and
     the ones left out as (path, reason): failed, still running, interrupted, malformed files.
-    A missing path or a file given as a directory is a ValueError (one line)."""
+    A missing path or a file given as a directory is a ReportError (a ValueError, one line)."""
+    from zrp_ga.report.cli import ReportError
+
     roots = []
     for p in paths:
         path = Path(p)
         if not path.exists():
-            raise ValueError(f"{p}: no such directory")
+            raise ReportError(f"{p}: no such directory")
         if not path.is_dir():
-            raise ValueError(f"{p}: not a directory")
+            raise ReportError(f"{p}: not a directory")
         roots.append(path.resolve())
     runs: list[Run] = []
     left: list[tuple[str, str]] = []

@@ -9,7 +9,7 @@ import pandas as pd
 
 from zrp_ga.report import stats, targets
 from zrp_ga.report.labels import configurations, describe
-from zrp_ga.report.runs import Run
+from zrp_ga.report.runs import Run, number
 from zrp_ga.report.targets import TargetRule
 
 
@@ -42,11 +42,10 @@ def _per_run(runs: list[Run], labels: list[str], shown: dict, keys: list[str], f
     for r, label in zip(runs, labels):
         setting = {k: shown[label].get(k, "") for k in keys}
         ref = float(reference.loc[r.instance])
-        ratio = r.summary.get("final_over_initial")
         rows.append(dict(
             run=str(r.path), configuration=label, instance=r.instance, **setting, seed=r.summary.get("seed"),
             final_cost=r.final_cost, reference=ref, final_over_ref=r.final_cost / ref if ref > 0 else math.nan,
-            final_over_initial=float(ratio) if isinstance(ratio, (int, float)) else math.nan, nevals=r.nevals,
+            final_over_initial=number(r.summary.get("final_over_initial")), nevals=r.nevals,
             val_rms_mm=r.validation_mm("calibrated"), val_rms_nominal_mm=r.validation_mm("nominal"),
             wall_s=r.summary.get("wall_s"), evals_to_target=float(hit.get(str(r.path), math.inf)),
             auc=area_under_curve(r.convergence, budget), auc_budget=budget,
@@ -82,9 +81,9 @@ def _summary(runs_df: pd.DataFrame, ert_all: pd.DataFrame, rule: TargetRule) -> 
     return pd.DataFrame(out).sort_values(["final_over_ref_median", "final_cost_median"], kind="stable").reset_index(drop=True)
 
 
-def _per_instance(runs_df: pd.DataFrame, ert_inst: pd.DataFrame, rule: TargetRule) -> pd.DataFrame:
-    """Per instance and configuration: runs, median final cost and its ratio to f_ref, success
-    rate and ERT per level."""
+def _per_instance(runs_df: pd.DataFrame, ert_inst: pd.DataFrame, rule: TargetRule, order: list[str]) -> pd.DataFrame:
+    """Per instance and configuration (in ``order``): runs, median final cost and its ratio to
+    f_ref, success rate and ERT per level."""
     base = (runs_df.groupby(["instance", "configuration"], sort=False)
             .agg(runs=("run", "size"), final_cost_median=("final_cost", "median"),
                  final_over_ref_median=("final_over_ref", "median")).reset_index())  # fmt: skip
@@ -93,22 +92,26 @@ def _per_instance(runs_df: pd.DataFrame, ert_inst: pd.DataFrame, rule: TargetRul
         wide.columns = [f"{'success' if a == 'success_rate' else 'ert'}_{b}" for a, b in wide.columns]
         base = base.merge(wide.reset_index(), on=["instance", "configuration"], how="left")
     order = [f"{m}_{level}" for m in ("success", "ert") for level in rule.names() if f"{m}_{level}" in base]
+    position = base["configuration"].map({c: i for i, c in enumerate(order)})
+    base = base.assign(position=position).sort_values(["instance", "position"]).reset_index(drop=True)
     return base[["instance", "configuration", "runs", "final_cost_median", "final_over_ref_median", *order]]
 
 
-def rank_scores(runs_df: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
-    """(N instances, k configurations) median over runs of the final cost clipped below at
-    f_ref (non-finite: +inf), on the instances where every configuration ran; and the
-    instances left out for lacking one."""
-    clipped = np.fmax(runs_df["final_cost"].fillna(np.inf), runs_df["reference"].fillna(-np.inf))
-    table = runs_df.assign(score=clipped).pivot_table(index="instance", columns="configuration", values="score", aggfunc="median")
+def rank_scores(runs_df: pd.DataFrame, floors: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
+    """(N instances, k configurations) median over runs of the final cost clipped below at the
+    instance's tightest target (non-finite: +inf), on the instances where every configuration
+    ran; and the instances left out for lacking one."""
+    tightest = floors.set_index("instance").filter(like="target_").min(axis=1)
+    clip = runs_df["instance"].map(tightest).fillna(-np.inf)
+    score = np.fmax(runs_df["final_cost"].fillna(np.inf), clip)
+    table = runs_df.assign(score=score).pivot_table(index="instance", columns="configuration", values="score", aggfunc="median")
     complete = table.notna().all(axis=1)
     return table[complete], list(table.index[~complete])
 
 
-def _friedman(runs_df: pd.DataFrame) -> tuple[dict | None, str]:
+def _friedman(runs_df: pd.DataFrame, floors: pd.DataFrame) -> tuple[dict | None, str]:
     """Friedman's test across instances, or None and why not."""
-    scores, incomplete = rank_scores(runs_df)
+    scores, incomplete = rank_scores(runs_df, floors)
     k, n = runs_df["configuration"].nunique(), len(scores)
     if k < 2:
         return None, "one configuration: nothing to rank"
@@ -148,10 +151,11 @@ def build_tables(runs: list[Run], rule: TargetRule = TargetRule(), budgets: tupl
     groups = {m: {lab: g[m].to_numpy(dtype=float) for lab, g in runs_df.groupby("configuration", sort=False)}
               for m in ("final_cost", "final_over_ref", "val_rms_mm")}  # fmt: skip
     statistics = pd.concat([stats.compare(v, m) for m, v in groups.items()], ignore_index=True)
-    friedman, friedman_note = _friedman(runs_df)
+    friedman, friedman_note = _friedman(runs_df, floors)
+    summary = _summary(runs_df, ert_all, rule)
     return dict(
         labels=labels, shown=shown, keys=keys, floors=floors, hits=hits, runs=runs_df, tidy=tidy,
-        summary=_summary(runs_df, ert_all, rule), per_instance=_per_instance(runs_df, ert_inst, rule),
+        summary=summary, per_instance=_per_instance(runs_df, ert_inst, rule, list(summary["configuration"])),
         ert=pd.concat([ert_all.assign(instance="all", target=np.nan), ert_inst], ignore_index=True)[
             ["configuration", "instance", "level", "target", "runs", "successes", "success_rate", "ert"]],
         ecdf=targets.ecdf(hits), fixed_budget=budget_inst, fixed_budget_all=budget_all, statistics=statistics,

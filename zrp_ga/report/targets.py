@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from zrp_ga.report.cli import BUDGETS, LEVELS, ROUND_OFF  # the command's defaults  # noqa: F401
-from zrp_ga.report.runs import Run
+from zrp_ga.report.runs import Run, number
 
 
 @dataclasses.dataclass(frozen=True)
@@ -28,15 +28,9 @@ class TargetRule:
 
     def primary(self) -> str:
         """The level the single-target columns use: 1.05 when among the levels, else the tightest."""
-        names = self.names()
-        return "1.05" if "1.05" in names else names[-1]
-
-
-def _floor_field(value) -> float:
-    """summary.json's ``floor``: a number, or an object with ``cost``; NaN when absent."""
-    if isinstance(value, dict):
-        value = value.get("cost")
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
+        if self.absolute is not None:
+            return self.names()[0]
+        return "1.05" if 1.05 in self.levels else f"{min(self.levels):g}"
 
 
 def floors(runs: list[Run], rule: TargetRule) -> pd.DataFrame:
@@ -50,9 +44,10 @@ def floors(runs: list[Run], rule: TargetRule) -> pd.DataFrame:
     """
     rows = []
     for instance, group in _by_instance(runs).items():
-        nominal = float(np.nanmedian([r.summary.get("nominal_cost") if isinstance(r.summary.get("nominal_cost"), (int, float)) else np.nan for r in group] or [np.nan]))
-        given = [_floor_field(r.summary.get("floor")) for r in group]
-        given = [f for f in given if math.isfinite(f)]
+        nominals = [v for v in (number(r.summary.get("nominal_cost")) for r in group) if math.isfinite(v)]
+        nominal = float(np.median(nominals)) if nominals else math.nan
+        fields = (r.summary.get("floor") for r in group)  # a number, or an object holding it as ``cost``
+        given = [v for v in (number(f.get("cost") if isinstance(f, dict) else f) for f in fields) if math.isfinite(v)]
         finals = [r.final_cost for r in group if math.isfinite(r.final_cost)]
         if given:
             floor, source = min(given), "summary.json floor"
