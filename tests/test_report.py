@@ -170,6 +170,12 @@ def test_partial_sweep_reports_what_it_left_out(sweep, tmp_path, capsys):
     assert len(left) == 2
 
 
+def test_a_job_read_alone_takes_its_settings_from_hydra(sweep):
+    job = read_manifest(sweep).iloc[4]
+    (run,), left = report.find_runs([sweep / str(job.dir)])  # no manifest: .hydra/overrides.yaml
+    assert left == [] and run.overrides == dict(o.split("=", 1) for o in job.overrides.split())
+
+
 def test_nothing_to_report_is_one_clear_line(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_:
         report.main([str(tmp_path)])

@@ -158,6 +158,9 @@ def test_a_diverged_run_counts_hits_nothing_and_ranks_last(tmp_path):
     ert = t["ert"].set_index(["configuration", "instance", "level"])["ert"]
     assert math.isinf(ert[("Levenberg-Marquardt", "A", "1.5")]) and ert[("Levenberg-Marquardt", "all", "1.5")] == (5 + 5) / 1
     assert t["friedman"]["mean_ranks"]["GA"] == 1.0 and t["friedman"]["test"] == "sign test"
+    written = report.write_report([tmp_path], tmp_path / "r", formats=())
+    assert f"not in the IOH export: {tmp_path / 'lm'} (no finite cost)" in written["notes"]  # JSON has no infinity
+    assert f"no Table 2 or 3: {tmp_path / 'ga' / 'best_params.csv'} cannot be read" in written["notes"]  # made-up runs lack it
 
 
 def test_ranks_need_two_instances_with_every_configuration(two_instances, tmp_path):
@@ -182,6 +185,15 @@ def test_labels_name_what_tells_configurations_apart(tmp_path):
     fake_run(tmp_path / "d", "A", "ga", [(10, 1.0)], config=bigger, choices={})
     labels, _ = report.configurations(report.find_runs([tmp_path])[0])
     assert labels[0] == "GA, blend crossover, mu 10" and labels[3] == "GA, blend crossover, mu 50"
+
+
+def test_only_keeps_the_runs_given_a_setting(two_instances, tmp_path):
+    t = report.write_report([two_instances], tmp_path / "r", only=["algorithm=lm"], formats=())
+    assert set(t["runs"]["configuration"]) == {"Levenberg-Marquardt"} and len(t["runs"]) == 2
+    t = report.write_report([two_instances], tmp_path / "r", only=["population.mu=10"], formats=())  # a key of the config
+    assert set(t["runs"]["configuration"]) == {"GA"} and not (tmp_path / "r" / "fig2_convergence.png").exists()
+    with pytest.raises(ValueError, match="no finished run under .* with algorithm=cmaes"):
+        report.write_report([two_instances], tmp_path / "r", only=["algorithm=cmaes"])
 
 
 def test_settings_in_words():

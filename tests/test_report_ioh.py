@@ -45,12 +45,13 @@ def _reference(runs, labels, root):
             mine = [r for r, lab in zip(runs, labels) if lab == label and r.instance == instance]
             if not mine:
                 continue
-            costs = iter([])
-            ioh.wrap_problem(lambda x: next(costs), name=instance, optimization_type=ioh.OptimizationType.MIN, lb=-1, ub=1)
+            replay = {"costs": iter([])}  # the run being replayed
+            ioh.wrap_problem(lambda x, replay=replay: next(replay["costs"]), name=instance,
+                             optimization_type=ioh.OptimizationType.MIN, lb=-1, ub=1)  # fmt: skip
             problem = ioh.get_problem(instance, dimension=2, instance=1)
             problem.attach_logger(logger)
             for r in mine:
-                costs = iter(_replay(r.evals, r.best, r.nevals))
+                replay["costs"] = iter(_replay(r.evals, r.best, r.nevals))
                 for _ in range(r.nevals):
                     problem(np.array(X))
                 problem.reset()

@@ -12,7 +12,8 @@ and moved into ``--out`` at the end: an error leaves nothing half-written.
 Words and numbers
 -----------------
 - **Instance**: summary.json's ``instance`` (the problem, its data and, for simulated problems,
-  the instance seed); runs of one instance share it.
+  the instance seed); runs of one instance share it. A run needs ``instance``, ``nevals`` and
+  ``final_cost`` in its summary.json, and convergence.csv's ``gen``, ``nevals`` and ``best``.
 - **Configuration**: what the optimiser was built from (summary.json's resolved
   ``config.algorithm``); its label names the settings that tell the configurations apart, from
   the runs' Hydra choices and overrides (:mod:`zrp_ga.report.labels`).
@@ -24,8 +25,8 @@ Words and numbers
   ("best known", as COCO does when the optimum is unknown); ``targets.csv`` says which.
 - **Reference f_ref** = f*, except where f* < 1e-9 x the nominal cost (the cost of the nominal
   model; ``--round-off``): there f* is round-off (the one-pose paper problem is solved exactly,
-  f* ~ 1e-18) and ratios to it are noise, so f_ref = 1e-9 x the nominal cost: a run "reaches the
-  floor" when it has removed all but a billionth of the nominal model's misfit.
+  f* ~ 1e-18) and ratios to it are noise, so f_ref = 1e-9 x the nominal cost: there a run hits
+  target c when its cost is down to c billionths of the nominal model's cost.
 - **Targets**: c x f_ref for each level c (``--levels``, default 1.5, 1.1, 1.05, 1.01); a run
   hits a target when its best cost <= the target. ``--target COST`` sets one absolute target for
   every instance instead. The **primary target** (1.05, else the tightest level, or ``--target``)
@@ -58,15 +59,19 @@ Words and numbers
 
 Outputs in ``--out`` (default ``report`` beside the first DIR), CSV with a Markdown twin where
 useful: ``targets`` (per instance: runs, nominal cost, f*, its source, round-off or not, f_ref,
-the targets), ``summary`` (per configuration, pooled), ``per_instance``, ``ert``, ``ecdf``,
-``fixed_budget`` (per instance; ``fixed_budget.md`` the medians over instances), ``ranks``
-(Friedman and Nemenyi), ``statistics``, ``factors``, ``runs`` (one row per run), ``tidy`` (one row
-per run and generation), ``left_out``; figures (PNG and PDF): ``fig2_convergence`` (the paper's
-Fig. 2: the median run of each of the four best configurations), ``convergence_by_configuration``
-(median and interquartile band against evaluations; over f_ref with several instances),
-``ecdf_evals_to_target``, ``validation_error_boxplot``, ``critical_difference``;
-``table2_initial_population.md`` and ``table3_best_params.md`` of the median run of the best
-configuration; ``ioh/`` the runs in IOHprofiler's format (:mod:`zrp_ga.report.ioh_export`).
+the targets), ``summary`` (per configuration, pooled), ``per_instance``, ``ert`` (``ert.md``: pooled
+over instances), ``ecdf``, ``fixed_budget`` (per instance; ``fixed_budget.md``: the medians over
+instances), ``ranks`` (Friedman's test and the mean ranks; ``ranks_nemenyi.csv`` the pairwise
+p-values), ``statistics``, ``factors``, ``runs`` (one row per run), ``tidy`` (one row per run and
+generation), ``left_out`` (run, reason); figures (``--formats``, default PNG and PDF; ``none``:
+no figures): ``fig2_convergence`` (the paper's Fig. 2: the median run of each of the four best
+configurations), ``convergence_by_configuration`` (median and interquartile band against
+evaluations; over f_ref with several instances), ``ecdf_evals_to_target``,
+``validation_error_boxplot`` (when a run has validation poses), ``critical_difference`` (when
+ranks are computed); ``table2_initial_population.md`` and ``table3_best_params.md`` of the median
+run of the best configuration; ``ioh/`` (or ``--ioh DIR``) the runs in IOHprofiler's format
+(:mod:`zrp_ga.report.ioh_export`). Files of an earlier report in the same folder that this one
+does not write are removed; other files are left alone.
 """
 
 from __future__ import annotations

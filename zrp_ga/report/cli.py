@@ -201,21 +201,20 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
     export into ``ioh`` (default ``out/ioh``); returns the tables. ``only``: ``KEY=VALUE``
     settings a run must have been given to count (e.g. ``refine=none``); ``target``: one
     absolute target cost instead of ``levels`` x f_ref; ``formats``: of the figures (none: no
-    figures). Bad input is a ReportError (a
-    ValueError, one line), raised before anything is written."""
+    figures). Bad input is a ReportError (a ValueError, one line), raised before anything is
+    written."""
     if not paths:
         raise ReportError("no directory given")
     out = Path(out) if out is not None else Path(paths[0]) / "report"
     ioh = Path(ioh) if ioh is not None else out / IOH
     with _staging(paths, out, ioh) as stage:
         import pandas as pd
+        from matplotlib.backend_bases import FigureCanvasBase
 
         from zrp_ga.report import figures, ioh_export
         from zrp_ga.report.runs import find_runs, parse_overrides
         from zrp_ga.report.tables import build_tables
         from zrp_ga.report.targets import TargetRule
-
-        from matplotlib.backend_bases import FigureCanvasBase
 
         unknown = sorted(set(formats) - set(FigureCanvasBase.get_supported_filetypes()))
         if unknown:
@@ -238,28 +237,33 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
             figures.convergence_runs(chosen, stage, tuple(formats))
         unread = _paper_tables(chosen[0][1], stage)
         (stage / IOH).mkdir()
-        left += ioh_export.export(runs, t["labels"], t["shown"], stage / IOH)
-        left += [(p, "its file could not be read for Tables 2 and 3") for p in unread]
-        t["left_out"] = pd.DataFrame(left, columns=["run", "reason"])
+        notes = [f"not in the IOH export: {p} ({why})" for p, why in ioh_export.export(runs, t["labels"], t["shown"], stage / IOH)]
+        notes += [f"no Table 2 or 3: {p} cannot be read" for p in unread]
+        t["left_out"], t["notes"] = pd.DataFrame(left, columns=["run", "reason"]), notes
         t["left_out"].to_csv(stage / "left_out.csv", index=False)
         _publish(stage, out, ioh)
     t.update(shown_in_figures=shown, single_run=str(chosen[0][1].path), out=str(out))
     return t
 
 
-def console(t: dict) -> str:
-    """What the command prints: counts, the runs left out, the targets, the configurations."""
+def console(t: dict, max_rows: int = 12) -> str:
+    """What the command prints: counts, the runs left out, the targets (of ``max_rows`` instances
+    at most), the configurations, the ranks."""
     rule: TargetRule = t["rule"]
     runs, floors = t["runs"], t["floors"]
     lines = [f"{len(runs)} runs of {runs['configuration'].nunique()} configurations on {len(floors)} instance(s); report in {t['out']}"]
     lines += [f"left out {run}: {why}" for run, why in t["left_out"].itertuples(index=False)]
+    lines += [f"note: {note}" for note in t["notes"]]
     if rule.absolute is not None:
         lines.append(f"\nTarget: best cost <= {rule.absolute:g} on every instance (--target).")
     else:
         lines.append(f"\nTargets: c x f_ref for c in {', '.join(rule.names())}; f_ref = the floor f*, or {rule.round_off:g} x "
                      f"the nominal cost where f* is below that (round-off):")  # fmt: skip
     cols = ["instance", "runs", "nominal_cost", "floor", "floor_source", "round_off", "reference"]
-    lines.append(markdown(floors[cols].rename(columns={"floor": "floor f*", "floor_source": "f* from", "reference": "f_ref"})))
+    names = {"floor": "floor f*", "floor_source": "f* from", "reference": "f_ref"}
+    lines.append(markdown(floors[cols].head(max_rows).rename(columns=names)))
+    if len(floors) > max_rows:
+        lines.append(f"... and {len(floors) - max_rows} more instances in targets.csv\n")
     s = t["summary"]
     table = s[["configuration", "runs", "instances", "final_over_ref_median", "val_rms_mm_median"]].copy()
     table["hit " + "/".join(rule.names())] = ["/".join(f"{s.loc[i, f'success_{n}']:.2f}" for n in rule.names()) for i in s.index]

@@ -87,7 +87,7 @@ def export(runs: list[Run], labels: list[str], shown: dict[str, dict[str, str]],
         for instance in instances:
             group = [r for r, lab in zip(runs, labels) if lab == label and r.instance == instance]
             bad = [r for r in group if not math.isfinite(float(r.best[-1]))]
-            left += [(str(r.path), "IOH export: no finite cost") for r in bad]
+            left += [(str(r.path), "no finite cost") for r in bad]
             group = [r for r in group if r not in bad]
             if not group:
                 continue

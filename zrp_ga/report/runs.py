@@ -286,10 +286,10 @@ def find_runs(paths: list[str | Path]) -> tuple[list[Run], list[tuple[str, str]]
     left: list[tuple[str, str]] = []
     seen: set[Path] = set()
 
-    def take(path: Path, read) -> None:
+    def take(path: Path, read, *args) -> None:
         seen.add(path)
         try:
-            runs.append(read())
+            runs.append(read(*args))
         except LeftOut as why:
             left.append((str(path), str(why)))
 
@@ -303,9 +303,9 @@ def find_runs(paths: list[str | Path]) -> tuple[list[Run], list[tuple[str, str]]
             for job in jobs:
                 job_dir = path / str(job["dir"])
                 if job_dir not in seen:
-                    take(job_dir, lambda: _job(path, job))
+                    take(job_dir, _job, path, job)
         elif (path / "convergence.csv").exists() or (path / "status.json").exists():
-            take(path, lambda: load_run(path, _hydra_overrides(path)))
+            take(path, load_run, path, _hydra_overrides(path))
             return
         try:
             children = sorted(p for p in path.iterdir() if p.is_dir() and not p.name.startswith("."))

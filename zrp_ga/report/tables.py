@@ -136,8 +136,10 @@ def _factors(runs_df: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
     return pd.concat(out, ignore_index=True) if out else pd.DataFrame(columns=["setting", *stats.COMPARE_COLUMNS])
 
 
-def build_tables(runs: list[Run], rule: TargetRule = TargetRule(), budgets: tuple[int, ...] = targets.BUDGETS) -> dict:
-    """Every table of the report, as DataFrames (and the Friedman result), keyed by name."""
+def build_tables(runs: list[Run], rule: TargetRule | None = None, budgets: tuple[int, ...] = targets.BUDGETS) -> dict:
+    """Every table of the report, as DataFrames (and the Friedman result), keyed by name;
+    ``rule``: how targets are set (default: the default levels)."""
+    rule = rule or TargetRule()
     labels, shown = configurations(runs)
     keys = list(dict.fromkeys(k for s in shown.values() for k in s))
     floors = targets.floors(runs, rule)
