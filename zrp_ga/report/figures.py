@@ -17,7 +17,7 @@ COST_LABEL = "best cost (2-norm of the residual; m and rad)"
 
 
 def save(fig: Figure, out: Path, name: str, formats: tuple[str, ...]) -> None:
-    fig.tight_layout()
+    """``fig`` as ``out/name.<ext>`` for each format (the figures lay themselves out: constrained layout)."""
     for ext in formats:
         fig.savefig(out / f"{name}.{ext}", dpi=150)
 
@@ -28,7 +28,7 @@ def _legend_below(ax, n: int) -> None:
 
 def convergence_runs(chosen: list[tuple[str, Run]], out: Path, formats: tuple[str, ...]) -> None:
     """The paper's Fig. 2: best cost per generation of single runs (one per configuration)."""
-    fig = Figure(figsize=(6.5, 4.2))
+    fig = Figure(figsize=(6.5, 4.2), layout="constrained")
     ax = fig.subplots()
     values = []
     for label, run in chosen:
@@ -64,7 +64,7 @@ def convergence_by_configuration(runs: list[Run], labels: list[str], shown: list
     configuration against evaluations."""
     top = max(int(r.evals[-1]) for r in runs)
     grid = np.unique(np.geomspace(1, max(top, 2), 200).round())
-    fig = Figure(figsize=(7.5, 4.5 + 0.18 * len(shown)))
+    fig = Figure(figsize=(7.5, 4.5 + 0.18 * len(shown)), layout="constrained")
     ax = fig.subplots()
     for label in shown:
         members = [r for r, lab in zip(runs, labels) if lab == label]
@@ -88,7 +88,7 @@ def ecdf(curves_: pd.DataFrame, shown: list[str], ends: dict[str, float], what: 
          formats: tuple[str, ...]) -> None:  # fmt: skip
     """The fixed-target ECDF per configuration (rows of :func:`zrp_ga.report.targets.ecdf`), each
     drawn up to ``ends`` (its longest run, marked x as COCO does)."""
-    fig = Figure(figsize=(7.5, 4.5 + 0.18 * len(shown)))
+    fig = Figure(figsize=(7.5, 4.5 + 0.18 * len(shown)), layout="constrained")
     ax = fig.subplots()
     for label in shown:
         c = curves_[curves_["configuration"] == label]
@@ -111,7 +111,7 @@ def validation_boxplot(runs_df: pd.DataFrame, shown: list[str], note: str, out: 
     data = {lab: v for lab, v in data.items() if len(v)}
     if not data:
         return False
-    fig = Figure(figsize=(7.5, 1.5 + 0.45 * len(data)))
+    fig = Figure(figsize=(7.5, 1.5 + 0.45 * len(data)), layout="constrained")
     ax = fig.subplots()
     names = list(data)[::-1]
     ax.boxplot([data[n] for n in names], orientation="horizontal", tick_labels=names)
@@ -135,11 +135,11 @@ def critical_difference(result: dict, out: Path, formats: tuple[str, ...]) -> No
     names, r = list(ranks.index), ranks.to_numpy()
     cliques = []
     for i in range(k):
-        j = int(np.searchsorted(r, r[i] + cd, side="left")) - 1  # the last within CD of r[i]
+        j = int(np.searchsorted(r, r[i] + cd, side="right")) - 1  # the last within CD of r[i]
         if j > i and not any(a <= i and j <= b for a, b in cliques):
             cliques.append((i, j))
     half = (k + 1) // 2
-    fig = Figure(figsize=(8, 1.6 + 0.3 * max(half, k - half) + 0.15 * len(cliques)))
+    fig = Figure(figsize=(8, 1.6 + 0.3 * max(half, k - half) + 0.15 * len(cliques)), layout="constrained")
     ax = fig.subplots()
     ax.set_xlim(0.5, k + 0.5)
     ax.hlines(0, 1, k, color="k")
@@ -169,7 +169,7 @@ def pose_error_figure(run_dir: str | Path) -> Figure:
     from a measured run's ``pose_errors.csv`` (a ``matplotlib.figure.Figure``, no backend chosen)."""
     table = pd.read_csv(Path(run_dir) / "pose_errors.csv")
     errors = {k: (g["nominal_mm"].to_numpy(), g["calibrated_mm"].to_numpy()) for k, g in table.groupby("set", sort=False)}
-    fig = Figure(figsize=(8, 2.8 * len(errors)))
+    fig = Figure(figsize=(8, 2.8 * len(errors)), layout="constrained")
     axes = fig.subplots(len(errors), 1, squeeze=False)
     for ax, (label, (before, after)) in zip(axes[:, 0], errors.items()):
         idx = np.arange(1, len(before) + 1)
@@ -178,5 +178,4 @@ def pose_error_figure(run_dir: str | Path) -> Figure:
         ax.set_xlabel(f"pose of the {label} set")
         ax.set_ylabel("position error, mm")
         ax.legend(fontsize=7, markerscale=3)
-    fig.tight_layout()
     return fig

@@ -234,7 +234,7 @@ def _unfinished(status: dict | None, path: Path, manifest_state: str | None = No
     if state == "interrupted":
         return f"interrupted (continue it with zrp-ga resume={path})"
     if state == "running":
-        return "still running"
+        return "still running (or killed while running)"
     return "not finished (no summary.json)"
 
 

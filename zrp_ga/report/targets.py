@@ -105,11 +105,11 @@ def ert(hits_: pd.DataFrame, by: list[str]) -> pd.DataFrame:
     their hit, the others in full) over the number of successful runs; inf when none succeeds.
     Also the runs, the successes and the success rate."""
 
-    def one(g: pd.DataFrame) -> pd.Series:
+    def one(g: pd.DataFrame) -> dict:
         ok = np.isfinite(g["hit"].to_numpy())
-        spent = np.where(ok, g["hit"], g["nevals"]).sum()
-        return pd.Series(dict(runs=len(g), successes=int(ok.sum()), success_rate=ok.mean(),
-                              ert=spent / ok.sum() if ok.any() else math.inf))  # fmt: skip
+        spent = float(np.where(ok, g["hit"], g["nevals"]).sum())
+        return dict(runs=len(g), successes=int(ok.sum()), success_rate=float(ok.mean()),
+                    ert=spent / ok.sum() if ok.any() else math.inf)  # fmt: skip
 
     out = [dict(zip(by, key if isinstance(key, tuple) else (key,)), **one(g)) for key, g in hits_.groupby(by, sort=False)]
     return pd.DataFrame(out, columns=[*by, "runs", "successes", "success_rate", "ert"])
