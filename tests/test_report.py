@@ -1,4 +1,5 @@
-"""zrp-ga-report on a real 3-configuration x 3-seed sweep, checked against hand computations."""
+"""zrp-ga-report on a real 3-configuration x 3-seed sweep (each seed its own problem instance),
+checked against hand computations from the runs' files."""
 
 import itertools
 import json
@@ -10,6 +11,7 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats
 
 from zrp_ga import report
 from zrp_ga.hydra_callbacks import MANIFEST, read_manifest
@@ -56,19 +58,24 @@ def test_every_file_is_written(sweep, tmp_path):
     out = tmp_path / "report"
     report.write_report([sweep], out)
     for name in ["runs.csv", "tidy.csv", "summary.csv", "summary.md", "statistics.csv", "statistics.md", "factors.csv", "factors.md",
-                 "left_out.csv", "table2_initial_population.md", "table3_best_params.md"]:
+                 "left_out.csv", "table2_initial_population.md", "table3_best_params.md", "targets.csv", "targets.md", "ert.csv",
+                 "ert.md", "ecdf.csv", "fixed_budget.csv", "fixed_budget.md", "per_instance.csv", "per_instance.md", "ranks.csv",
+                 "ranks.md"]:  # fmt: skip
         assert (out / name).stat().st_size > 0, name
-    for fig in ["fig2_convergence", "convergence_by_configuration", "ecdf_evals_to_target", "validation_error_boxplot"]:
+    for fig in ["fig2_convergence", "convergence_by_configuration", "ecdf_evals_to_target", "validation_error_boxplot",
+                "critical_difference"]:  # fmt: skip
         assert (out / f"{fig}.png").stat().st_size > 10_000 and (out / f"{fig}.pdf").exists(), fig
     tidy = pd.read_csv(out / "tidy.csv")
     assert len(tidy) == 9 * 7 and set(tidy["crossover"]) == set(CROSSOVERS)  # 9 runs x (gen 0..6)
-    assert {"run", "configuration", "gen", "nevals", "best", "val_rms_mm"} <= set(tidy.columns)
+    assert {"run", "configuration", "instance", "gen", "nevals", "best", "val_rms_mm"} <= set(tidy.columns)
+    assert len(list((out / "ioh").glob("*/IOHprofiler_f*.json"))) == 9  # 3 configurations x 3 instances
+    assert not list(tmp_path.glob(".report.*"))  # the staging folder is gone
 
 
 def test_summary_and_statistics_match_hand_computations(sweep, tmp_path):
     finals = _finals(sweep)
     target = float(np.median(np.concatenate(list(finals.values()))))
-    tables = report.write_report([sweep], tmp_path / "report", target=target)
+    tables = report.build_tables(report.find_runs([sweep])[0], report.TargetRule(absolute=target))
     summary = tables["summary"].set_index("configuration")
     labels = {c: f"{c.replace('_', ' ')} crossover" for c in CROSSOVERS}
     for c, x in finals.items():
@@ -109,12 +116,15 @@ def test_summary_and_statistics_match_hand_computations(sweep, tmp_path):
 
 
 def test_evaluations_to_target_and_area_under_curve_by_hand(sweep, tmp_path):
-    tables = report.write_report([sweep], tmp_path / "report", target=1.0)
+    tables = report.build_tables(report.find_runs([sweep])[0], report.TargetRule(absolute=1.0))
     runs = tables["runs"]
     budget = min(pd.read_csv(f"{r}/convergence.csv")["nevals"].iloc[-1] for r in runs["run"])
     for r in runs.itertuples():
         conv = pd.read_csv(f"{r.run}/convergence.csv")
-        hits = [e for e, b in zip(conv["nevals"], conv["best"]) if b <= 1.0]
+        initial = pd.read_csv(f"{r.run}/initial_population.csv")["cost"].tolist()
+        # the initial population one evaluation at a time, then the generations' ends
+        evaluations = list(range(1, len(initial) + 1)) + list(conv["nevals"][1:])
+        hits = [e for e, b in zip(evaluations, initial + list(conv["best"][1:])) if b <= 1.0]
         assert r.evals_to_target == (hits[0] if hits else np.inf)
         total, best = 0.0, np.inf
         rows = list(zip(conv["nevals"], conv["best"]))
@@ -125,7 +135,24 @@ def test_evaluations_to_target_and_area_under_curve_by_hand(sweep, tmp_path):
         assert r.auc == pytest.approx(total / (budget - rows[0][0]))
 
 
-def test_partial_sweep_reports_what_it_left_out(sweep, tmp_path):
+def test_ranks_across_the_sweeps_instances(sweep, tmp_path):
+    """Each seed is its own instance: Friedman's test over 3 instances of the 3 crossovers,
+    against scipy on the final costs read from summary.json."""
+    table = {}
+    for job in read_manifest(sweep).itertuples():
+        s = json.loads((sweep / str(job.dir) / "summary.json").read_text())
+        table.setdefault(s["instance"], {})[s["choices"]["crossover"]] = s["final_cost"]
+    assert len(table) == 3
+    costs = np.array([[table[i][c] for c in CROSSOVERS] for i in sorted(table)])
+    clipped = np.maximum(costs, 1.01 * costs.min(axis=1, keepdims=True))  # the tightest target, 1.01 x the best known
+    f = report.build_tables(report.find_runs([sweep])[0])["friedman"]
+    assert f["instances"] == 3 and f["statistic"] == pytest.approx(stats.friedmanchisquare(*clipped.T).statistic)
+    ranks = stats.rankdata(clipped, axis=1).mean(axis=0)
+    for c, rank in zip(CROSSOVERS, ranks):
+        assert f["mean_ranks"][f"{c.replace('_', ' ')} crossover"] == pytest.approx(rank)
+
+
+def test_partial_sweep_reports_what_it_left_out(sweep, tmp_path, capsys):
     partial = tmp_path / "partial"
     shutil.copytree(sweep, partial)
     manifest = read_manifest(partial)
@@ -134,23 +161,25 @@ def test_partial_sweep_reports_what_it_left_out(sweep, tmp_path):
     with open(partial / MANIFEST, "a") as f:
         f.write(json.dumps({**failed.to_dict(), "status": "failed", "error": "ValueError: made to fail"}) + "\n")
         f.write(json.dumps({**running.to_dict(), "status": "running", "error": None}) + "\n")
-    proc = subprocess.run([sys.executable, "-m", "zrp_ga.report", str(partial), "--out", str(tmp_path / "r")],
-                          capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
-    assert "7 runs in 3 configurations" in proc.stdout
-    assert f"left out {partial / str(failed.dir)}: failed: ValueError: made to fail" in proc.stdout
-    assert f"left out {partial / str(running.dir)}: still running" in proc.stdout
+    report.main([str(partial), "--out", str(tmp_path / "r"), "--formats", "none"])
+    printed = capsys.readouterr().out
+    assert printed.startswith("7 runs of 3 configurations on 3 instance(s)")
+    assert f"left out {partial / str(failed.dir)}: failed: ValueError: made to fail" in printed
+    assert f"left out {partial / str(running.dir)}: still running" in printed
     left = pd.read_csv(tmp_path / "r" / "left_out.csv")
     assert len(left) == 2
 
 
-def test_nothing_to_report_is_one_clear_line(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "zrp_ga.report", str(tmp_path)], capture_output=True, text=True)
-    assert proc.returncode == 2 and proc.stderr.startswith("zrp-ga-report: error: no finished run under")
+def test_a_job_read_alone_takes_its_settings_from_hydra(sweep):
+    job = read_manifest(sweep).iloc[4]
+    (run,), left = report.find_runs([sweep / str(job.dir)])  # no manifest: .hydra/overrides.yaml
+    assert left == [] and run.overrides == dict(o.split("=", 1) for o in job.overrides.split())
 
 
-def test_settings_in_words():
-    assert report.describe("crossover", "two_point") == "two point crossover"
-    assert report.describe("inversion", "none") == "no inversion"
-    assert report.describe("algorithm", "lm") == "Levenberg-Marquardt"
-    assert report.describe("population.mu", "50") == "mu 50"
+def test_nothing_to_report_is_one_clear_line(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        report.main([str(tmp_path)])
+    assert exit_.value.code == 2 and capsys.readouterr().err.startswith("zrp-ga-report: error: no finished run under")
+    assert list(tmp_path.iterdir()) == []
+
+

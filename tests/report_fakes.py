@@ -1,0 +1,40 @@
+"""Made-up run directories for the report's tests: the files a run writes (summary.json,
+convergence.csv, status.json, optionally initial_population.csv) with numbers chosen so that
+every figure of the report can be computed by hand."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+ALGORITHMS = {
+    "ga": {"_target_": "zrp_ga.algorithms.ga.GA", "population": {"mu": 10, "lambda_": 10, "generations": 5, "max_evals": None},
+           "crossover": {"prob": 0.8, "op": {"_target_": "zrp_ga.operators.crossover.blend", "_partial_": True}}},
+    "lm": {"_target_": "zrp_ga.algorithms.lm.LM", "max_evals": None},
+    "cmaes": {"_target_": "zrp_ga.algorithms.cmaes.CMAES", "sigma0": 0.3},
+}  # fmt: skip
+
+
+def fake_run(path: Path, instance: str, algorithm: str, rows: list[tuple[int, float]], *, final: float | None = None,
+             nominal: float = 10.0, floor: float | None = None, seed: int = 0, initial: list[float] | None = None,
+             validation: float | None = 1.0, config: dict | None = None, choices: dict | None = None) -> Path:  # fmt: skip
+    """A finished run in ``path``: ``rows`` are (evaluations, best cost) per generation; the final
+    cost is the last row's unless ``final`` is given (None there writes null, a diverged run)."""
+    path.mkdir(parents=True)
+    lines = ["gen,nevals,best,mean"] + [f"{g},{e},{b!r},{b!r}" for g, (e, b) in enumerate(rows)]
+    (path / "convergence.csv").write_text("\n".join(lines) + "\n")
+    if initial is not None:
+        (path / "initial_population.csv").write_text("individual,g1,cost\n" + "".join(f"{i + 1},0.0,{c!r}\n" for i, c in enumerate(initial)))
+    cost = rows[-1][1] if final is None else final
+    summary = {
+        "instance": instance, "algorithm": algorithm, "choices": {"algorithm": algorithm} if choices is None else choices, "seed": seed,
+        "final_cost": cost, "initial_cost": rows[0][1], "nominal_cost": nominal,
+        "final_over_initial": None if cost is None else cost / rows[0][1], "nevals": rows[-1][0], "wall_s": 0.1,
+        "validation_rms_mm": {"nominal": None if validation is None else 10.0, "calibrated": validation},
+        "best_genome": {"g1": 0.5, "g2": -0.25}, "config": {"algorithm": config or ALGORITHMS[algorithm], "seed": seed},
+    }  # fmt: skip
+    if floor is not None:
+        summary["floor"] = floor
+    (path / "summary.json").write_text(json.dumps(summary))
+    (path / "status.json").write_text('{"status": "done"}')
+    return path

@@ -1,0 +1,106 @@
+"""The IOHprofiler export against what the ``ioh`` package's own logger writes for the same runs:
+each made-up run is replayed through ``ioh.logger.Analyzer`` evaluation by evaluation, and the
+two folders must hold the same files, meta data and (evaluations, best cost) records."""
+
+import json
+
+import numpy as np
+import pytest
+from report_fakes import fake_run
+
+from zrp_ga import report
+
+ioh = pytest.importorskip("ioh")
+X = [0.5, -0.25]  # report_fakes' best genome
+
+RUNS = {  # name: (instance, algorithm, convergence rows, initial population costs)
+    "a1": ("zrp-fake-A", "ga", [(4, 2.0), (8, 1.0), (12, 1.0)], [5.0, 2.5, 3.0, 2.0]),
+    "a2": ("zrp-fake-A", "ga", [(4, 3.0), (8, 3.0), (12, 1.5)], [3.0, 4.0, 3.5, 3.25]),
+    "b1": ("zrp-fake-B", "ga", [(4, 6.0), (8, 4.0)], [6.0, 7.0, 8.0, 9.0]),
+    "a3": ("zrp-fake-A", "lm", [(0, 8.0), (1, 8.0), (2, 4.0), (5, 0.5)], [8.0]),
+}  # fmt: skip
+
+
+def _replay(trace_e, trace_b, nevals):
+    """Costs of evaluations 1..nevals whose best so far is the trace: the new best where it
+    improves, something worse elsewhere, the best again at the last evaluation."""
+    best_at = dict(zip(trace_e.tolist(), trace_b.tolist()))
+    out, best = [], np.inf
+    for k in range(1, nevals + 1):
+        if k in best_at and best_at[k] < best:
+            best = best_at[k]
+            out.append(best)
+        else:
+            out.append(best if k == nevals else best + 1.0)
+    return out
+
+
+def _reference(runs, labels, root):
+    """The folder ``ioh.logger.Analyzer`` writes for ``runs``: one logger per configuration,
+    one wrapped problem per instance."""
+    for label in dict.fromkeys(labels):
+        logger = ioh.logger.Analyzer(root=str(root), folder_name=report.ioh_export.safe_name(label), algorithm_name=label,
+                                     algorithm_info="", store_positions=False)  # fmt: skip
+        for instance in sorted({r.instance for r in runs}):
+            mine = [r for r, lab in zip(runs, labels) if lab == label and r.instance == instance]
+            if not mine:
+                continue
+            replay = {"costs": iter([])}  # the run being replayed
+            ioh.wrap_problem(lambda x, replay=replay: next(replay["costs"]), name=instance,
+                             optimization_type=ioh.OptimizationType.MIN, lb=-1, ub=1)  # fmt: skip
+            problem = ioh.get_problem(instance, dimension=2, instance=1)
+            problem.attach_logger(logger)
+            for r in mine:
+                replay["costs"] = iter(_replay(r.evals, r.best, r.nevals))
+                for _ in range(r.nevals):
+                    problem(np.array(X))
+                problem.reset()
+        logger.close()
+
+
+def _records(dat):
+    """The (evaluations, cost) records of each run of a data file."""
+    runs = []
+    for line in dat.read_text().splitlines():
+        if line.startswith("evaluations"):
+            runs.append([])
+        else:
+            e, y = line.split()
+            runs[-1].append((int(e), float(y)))
+    return runs
+
+
+def test_export_matches_what_ioh_writes(tmp_path):
+    for name, (instance, algorithm, rows, initial) in RUNS.items():
+        fake_run(tmp_path / "runs" / name, instance, algorithm, rows, initial=initial)
+    runs = report.find_runs([tmp_path / "runs"])[0]
+    labels, shown = report.configurations(runs)
+    assert report.ioh_export.export(runs, labels, shown, tmp_path / "ours") == []
+    _reference(runs, labels, tmp_path / "ioh")
+    ours = sorted(p.relative_to(tmp_path / "ours") for p in (tmp_path / "ours").rglob("*.json"))
+    theirs = sorted(p.relative_to(tmp_path / "ioh") for p in (tmp_path / "ioh").rglob("*.json"))
+    assert [p.parent for p in ours] == [p.parent for p in theirs] and len(ours) == 3  # GA on A and B, LM on A
+    for mine, ref in zip(ours, theirs):
+        a = json.loads((tmp_path / "ours" / mine).read_text())
+        b = json.loads((tmp_path / "ioh" / ref).read_text())
+        assert set(a) == set(b)
+        fid = b["function_id"]
+        assert ref.name == mine.name.replace(f"_f{a['function_id']}_", f"_f{fid}_")
+        for key in ("function_name", "maximization", "algorithm", "attributes"):
+            assert a[key] == b[key] or key == "algorithm" and a[key]["name"] == b[key]["name"], key
+        (sa,), (sb,) = a["scenarios"], b["scenarios"]
+        assert sa["dimension"] == sb["dimension"] == 2
+        assert sb["path"] == sa["path"].replace(f"_f{a['function_id']}", f"_f{fid}")
+        assert [(r["instance"], r["evals"], r["best"]["evals"], r["best"]["y"], r["best"]["x"]) for r in sa["runs"]] == [
+            (r["instance"], r["evals"], r["best"]["evals"], r["best"]["y"], r["best"]["x"]) for r in sb["runs"]]  # fmt: skip
+        records = _records(tmp_path / "ours" / mine.parent / sa["path"])
+        assert records == _records(tmp_path / "ioh" / ref.parent / sb["path"])
+        assert all(run[0][0] == 1 for run in records)  # every block starts at evaluation 1
+
+
+def test_the_first_generations_records_by_hand(tmp_path):
+    fake_run(tmp_path / "r", "zrp-fake-C", "ga", [(4, 2.0), (8, 1.0), (12, 1.0)], initial=[5.0, 2.5, 3.0, 2.0])
+    runs = report.find_runs([tmp_path])[0]
+    report.ioh_export.export(runs, ["GA"], {"GA": {}}, tmp_path / "out")
+    dat = tmp_path / "out" / "GA" / "data_f1_zrp-fake-C" / "IOHprofiler_f1_DIM2.dat"
+    assert dat.read_text() == "evaluations raw_y\n1 5.0\n2 2.5\n4 2.0\n8 1.0\n12 1.0\n"

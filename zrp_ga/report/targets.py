@@ -1,0 +1,167 @@
+"""Benchmarking across instances as COCO and IOHprofiler do: reference floors, targets, hitting
+times, expected running time (ERT), the fixed-target ECDF and fixed-budget values. The
+definitions are in the package docstring (:mod:`zrp_ga.report`); runtime is in evaluations."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pandas as pd
+
+from zrp_ga.report.cli import BUDGETS, LEVELS, ROUND_OFF  # the command's defaults  # noqa: F401
+from zrp_ga.report.runs import Run, number
+
+
+@dataclasses.dataclass(frozen=True)
+class TargetRule:
+    """How targets are set: ``levels`` c (target c x f_ref per instance) or one ``absolute``
+    cost for every instance; ``round_off``: a floor below round_off x nominal cost is round-off."""
+
+    levels: tuple[float, ...] = LEVELS
+    absolute: float | None = None
+    round_off: float = ROUND_OFF
+
+    def names(self) -> list[str]:
+        return [f"cost<={self.absolute:g}"] if self.absolute is not None else [f"{c:g}" for c in self.levels]
+
+    def primary(self) -> str:
+        """The level the single-target columns use: 1.05 when among the levels, else the tightest."""
+        if self.absolute is not None:
+            return self.names()[0]
+        return "1.05" if 1.05 in self.levels else f"{min(self.levels):g}"
+
+
+def floors(runs: list[Run], rule: TargetRule) -> pd.DataFrame:
+    """One row per instance: its runs, nominal cost (median of the runs'), floor f* and where it
+    comes from, whether it is at round-off level, the reference f_ref the targets scale and the
+    targets, one column ``target_<level>`` per level.
+
+    f* is summary.json's ``floor`` when the runs carry one (the lowest if they differ), else
+    the lowest final cost among the runs (best known). f_ref = f*, except where f* <
+    round_off x nominal cost: there f_ref = round_off x nominal cost.
+    """
+    rows = []
+    for instance, group in _by_instance(runs).items():
+        nominals = [v for v in (number(r.summary.get("nominal_cost")) for r in group) if math.isfinite(v)]
+        nominal = float(np.median(nominals)) if nominals else math.nan
+        fields = (r.summary.get("floor") for r in group)  # a number, or an object holding it as ``cost``
+        given = [v for v in (number(f.get("cost") if isinstance(f, dict) else f) for f in fields) if math.isfinite(v)]
+        finals = [r.final_cost for r in group if math.isfinite(r.final_cost)]
+        if given:
+            floor, source = min(given), "summary.json floor"
+        elif finals:
+            floor, source = min(finals), f"best known (lowest final cost of {len(group)} run{'s' * (len(group) > 1)})"
+        else:
+            floor, source = math.nan, "none: no run has a finite final cost"
+        exact = bool(math.isfinite(floor) and math.isfinite(nominal) and nominal > 0 and floor < rule.round_off * nominal)
+        reference = rule.round_off * nominal if exact else floor
+        row = dict(instance=instance, runs=len(group), nominal_cost=nominal, floor=floor, floor_source=source,
+                   round_off=exact, reference=reference)  # fmt: skip
+        if rule.absolute is not None:
+            row[f"target_{rule.names()[0]}"] = rule.absolute
+        else:
+            row.update({f"target_{c:g}": c * reference for c in rule.levels})
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _by_instance(runs: list[Run]) -> dict[str, list[Run]]:
+    out: dict[str, list[Run]] = {}
+    for r in runs:
+        out.setdefault(r.instance, []).append(r)
+    return out
+
+
+def first_hit(evals: np.ndarray, best: np.ndarray, target: float) -> float:
+    """Evaluations until the best-so-far cost first reaches ``target`` (<=); inf if never.
+
+    >>> first_hit(np.array([10, 20, 30]), np.array([5.0, 2.0, 1.0]), 2.0)
+    20.0
+    """
+    hit = np.flatnonzero(best <= target)
+    return float(evals[hit[0]]) if hit.size and math.isfinite(target) else math.inf
+
+
+def hits(runs: list[Run], labels: list[str], table: pd.DataFrame, rule: TargetRule) -> pd.DataFrame:
+    """One row per (run, level): run, configuration, instance, level, target, ``hit`` (evaluations
+    to reach it, inf if never) and ``nevals`` (the run's evaluations in all). Instances without a
+    finite reference have no targets."""
+    targets = table.set_index("instance")
+    rows = []
+    for r, label in zip(runs, labels):
+        for level in rule.names():
+            target = float(targets.loc[r.instance, f"target_{level}"])
+            if math.isnan(target):
+                continue
+            rows.append(dict(run=str(r.path), configuration=label, instance=r.instance, level=level, target=target,
+                             hit=first_hit(r.evals, r.best, target), nevals=r.nevals))  # fmt: skip
+    return pd.DataFrame(rows, columns=["run", "configuration", "instance", "level", "target", "hit", "nevals"])
+
+
+def ert(hits_: pd.DataFrame, by: list[str]) -> pd.DataFrame:
+    """Expected running time per group of ``by``: the evaluations of all runs (successful ones to
+    their hit, the others in full) over the number of successful runs; inf when none succeeds.
+    Also the runs, the successes and the success rate."""
+
+    def one(g: pd.DataFrame) -> dict:
+        ok = np.isfinite(g["hit"].to_numpy())
+        spent = float(np.where(ok, g["hit"], g["nevals"]).sum())
+        return dict(runs=len(g), successes=int(ok.sum()), success_rate=float(ok.mean()),
+                    ert=spent / ok.sum() if ok.any() else math.inf)  # fmt: skip
+
+    out = [dict(zip(by, key if isinstance(key, tuple) else (key,)), **one(g)) for key, g in hits_.groupby(by, sort=False)]
+    return pd.DataFrame(out, columns=[*by, "runs", "successes", "success_rate", "ert"])
+
+
+def ecdf(hits_: pd.DataFrame) -> pd.DataFrame:
+    """The fixed-target ECDF per configuration, aggregated over (instance, level) pairs: at each
+    budget b, the mean over the configuration's pairs of the share of its runs on that instance
+    that hit the level's target within b evaluations (each pair weighs the same, however many
+    runs it has). Rows (configuration, evaluations, fraction) at each step, from (1, 0)."""
+    rows = []
+    for label, g in hits_.groupby("configuration", sort=False):
+        n_pairs = g.groupby(["instance", "level"]).ngroups
+        runs_per_pair = g.groupby(["instance", "level"])["run"].transform("size")
+        weight = 1.0 / (n_pairs * runs_per_pair.to_numpy())
+        ok = np.isfinite(g["hit"].to_numpy())
+        steps = pd.Series(weight[ok]).groupby(g["hit"].to_numpy()[ok]).sum().sort_index()
+        rows.append(dict(configuration=label, evaluations=1.0, fraction=0.0))
+        for e, frac in zip(steps.index, np.cumsum(steps.to_numpy())):
+            rows.append(dict(configuration=label, evaluations=float(e), fraction=float(frac)))
+    df = pd.DataFrame(rows, columns=["configuration", "evaluations", "fraction"])
+    # a hit at evaluation 1 replaces the starting point
+    return df.drop_duplicates(["configuration", "evaluations"], keep="last").reset_index(drop=True)
+
+
+def ecdf_at(curve: pd.DataFrame, budget: float) -> float:
+    """The ECDF ``curve`` of one configuration (rows of :func:`ecdf`) at ``budget`` evaluations."""
+    before = curve[curve["evaluations"] <= budget]
+    return float(before["fraction"].iloc[-1]) if len(before) else 0.0
+
+
+def best_at(evals: np.ndarray, best: np.ndarray, budget: float) -> float:
+    """The best cost within ``budget`` evaluations (a run that stopped earlier: its final best).
+
+    >>> best_at(np.array([1, 20, 40]), np.array([9.0, 5.0, 3.0]), 30)
+    5.0
+    """
+    i = np.searchsorted(evals, budget, side="right") - 1
+    return float(best[i]) if i >= 0 else math.nan
+
+
+def fixed_budget(runs: list[Run], labels: list[str], table: pd.DataFrame, budgets: tuple[int, ...]) -> pd.DataFrame:
+    """Per configuration, instance and budget: the runs and the median over them of (best cost
+    within the budget) / f_ref."""
+    reference = table.set_index("instance")["reference"]
+    rows = []
+    for r, label in zip(runs, labels):
+        ref = float(reference.loc[r.instance])
+        for b in budgets:
+            value = best_at(r.evals, r.best, b)
+            rows.append(dict(configuration=label, instance=r.instance, budget=b,
+                             ratio=value / ref if ref > 0 else math.nan))  # fmt: skip
+    df = pd.DataFrame(rows, columns=["configuration", "instance", "budget", "ratio"])
+    return (df.groupby(["configuration", "instance", "budget"], sort=False)["ratio"]
+              .agg(runs="size", median_cost_over_ref="median").reset_index())  # fmt: skip
