@@ -15,8 +15,8 @@ warning is the same.
 Robot files (:func:`write_robot`): every run writes ``calibrated_robot.urdf`` (with the base
 and the first tool as fixed joints: its forward kinematics from link ``world`` to link ``tool``
 is the calibrated model's, :func:`zrp_ga.kinematics.forward`), ``calibrated_robot_dh.yaml``
-(standard DH where the calibrated axes allow; the remaining mismatch in its header and in
-``summary.json``), ``calibrated_robot.yaml`` (ZRP) and ``calibrated_robot_frames.yaml`` (base
+and ``calibrated_robot_mdh.yaml`` (standard and modified DH where the calibrated axes allow; the
+remaining mismatch in each header and in ``summary.json``), ``calibrated_robot.yaml`` (ZRP) and ``calibrated_robot_frames.yaml`` (base
 and tool transforms as 4x4 matrices and as xyz + quaternion; every tool under ``tools``).
 """
 
@@ -203,10 +203,14 @@ def write_robot(out: Path, task: Task, x: np.ndarray, stem: str = "calibrated_ro
         with open(paths["frames"], "a") as f:
             f.write("# tools: every tool point's frame in the hand frame (tool: the first).\n")
             f.write(yaml.safe_dump({"tools": entries}, sort_keys=False, default_flow_style=None))
-    _, mismatch = robot_files.to_dh(arm)
+    paths["mdh"] = out / f"{stem}_mdh.yaml"
+    mdh, mdh_mismatch = robot_files.to_dh(arm, "mdh")
+    header = f"Modified DH table of {arm.name} (zrp_ga.robot_files.to_dh): {mdh_mismatch}"
+    robot_files.dh_to_yaml(mdh, paths["mdh"], comment="\n".join([header, *mdh_mismatch.notes]))
+    mismatch = {"dh": robot_files.to_dh(arm)[1], "mdh": mdh_mismatch}
     return {"files": {k: v.name for k, v in paths.items()},
-            "dh_mismatch": {"position_mm": mismatch.position_m * 1e3, "orientation_mrad": mismatch.orientation_rad * 1e3,
-                            "samples": mismatch.samples, "notes": list(mismatch.notes)},
+            **{f"{k}_mismatch": {"position_mm": m.position_m * 1e3, "orientation_mrad": m.orientation_rad * 1e3,
+                                 "samples": m.samples, "notes": list(m.notes)} for k, m in mismatch.items()},
             "base": None if base is None else base.tolist(), "tools": {k: T.tolist() for k, T in tools.items()}}  # fmt: skip
 
 
