@@ -193,3 +193,22 @@ def test_the_ur10_files_ship_and_read():
     np.testing.assert_allclose(b.p[0], [0.38376294, -3.2408734, 0.20193157])  # line 2 of the file, mm -> m
     np.testing.assert_allclose(b.R[0], Rotation.from_euler("XYZ", [-90.179302, -20.118749, -90.169308], degrees=True).as_matrix())
     assert b.std is not None
+
+
+def test_the_ur10_format_refuses_bad_cells_by_line_and_column(tmp_path):
+    from zrp_ga.problems.measured import data_path
+
+    lines = data_path("pkg:ur10_ipa/series_b_joint_configurations.csv").read_text().splitlines()[:12]
+    cells = lines[3].split(";")
+    cells[14] = "1e300"  # measurement_x
+    path = _file(tmp_path, "\n".join(lines[:3] + [";".join(cells)] + lines[4:]) + "\n", "ur10.csv")
+    assert "line 4, column 'measurement_x': 1e+300 mm is absurd" in _error(path, measurements.UR10_IPA)
+    path = _file(tmp_path, "\n".join(lines + lines[5:6]) + "\n", "repeat.csv")
+    assert "1 rows repeat earlier rows exactly (first: line 13 repeats line 6)" in _error(path, measurements.UR10_IPA)
+
+
+def test_points_too_close_together_for_either_unit_ask_for_it(tmp_path):
+    rows = [f"{i * 0.1},0,0,0,0,0,{300 + i},{200 - i},{500 + 2 * i}" for i in range(5)]  # 8 mm apart at most: mm or m?
+    message = _error(_file(tmp_path, "\n".join([HEAD, *rows]) + "\n"), zrp_format(6, "auto", "auto"))
+    assert "cannot tell metres from millimetres; set problem.length_unit=m or mm" in message
+    assert read(_file(tmp_path, "\n".join([HEAD, *rows]) + "\n", "mm.csv"), zrp_format(6, "mm", "auto"), UR10).units == ("mm", "rad")

@@ -299,22 +299,25 @@ def reach_m(robot: ZRPRobot) -> float:
 
 
 def resolve_length_unit(path: Path, points: Array, robot: ZRPRobot, unit: str) -> str:
-    """``m`` or ``mm`` for measured points (M, 3) in file units. A calibration's points spread
-    over more than 1% of the arm's reach and less than four times its reach plus a tool (the
-    spread: twice the median distance from the median point, so that absurd cells in fewer
-    than half of the rows do not decide it; they are refused later, by line and column). ``auto`` takes
-    the unit that fits; a stated unit that does not fit is an error naming the one that would."""
+    """``m`` or ``mm`` for measured points (M, 3) in file units. Points a tool on the arm can
+    reach spread over at most twice its reach plus a tool (the spread: twice the median
+    distance from the median point, so that absurd cells in fewer than half of the rows do not
+    decide it; they are refused later, by line and column); a calibration's spread over more
+    than 1% of the reach. ``auto`` takes the one unit in which both hold (none or both: an
+    error asking for the unit); a stated unit in which the points spread too far is an error
+    naming the unit that would fit."""
     if len(points) < 2:
         return "m" if unit == AUTO else unit
     spread = 2.0 * float(np.median(np.linalg.norm(points - np.median(points, axis=0), axis=1)))
     reach = reach_m(robot)
-    fits = [u for u in LENGTH if 0.01 * reach <= spread * LENGTH[u] <= 4.0 * (reach + TOOL_ALLOWANCE_M)]
+    within = {u for u in LENGTH if spread * LENGTH[u] <= 2.0 * (reach + TOOL_ALLOWANCE_M)}
+    fits = [u for u in LENGTH if u in within and spread * LENGTH[u] >= 0.01 * reach]
     where = f"{path}: the measured points spread over {spread:.4g} file units and {robot.name} reaches {reach:.3g} m"
     if unit == AUTO:
         if len(fits) != 1:
             raise ValueError(f"{where}: cannot tell metres from millimetres; set problem.length_unit=m or mm")
         return fits[0]
-    if unit not in fits:
+    if unit not in within:
         hint = f" (problem.length_unit={fits[0]}?)" if fits else ""
         raise ValueError(f"{where}: they cannot be in {unit}{hint}")
     return unit
