@@ -126,5 +126,5 @@ def _measurements(data, robot: ZRPRobot, c: config.MeasuredConf) -> Measurements
         return data
     from zrp_ga import measurements
 
-    fmt = measurements.zrp_format(robot.n, c.length_unit, c.angle_unit)
-    return measurements.read(Path(data), fmt, robot.n, c.drop_bad_rows)
+    fmt = measurements.zrp_format(robot.n, c.length_unit, c.angle_unit, c.orientation_convention)
+    return measurements.read(Path(data), fmt, robot, c.drop_bad_rows)

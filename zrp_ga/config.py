@@ -194,6 +194,16 @@ class SimulatedConf(ProblemConf):
             _require(math.isfinite(value) and value >= 0, f"{key}.{name}", "a number >= 0", value)
 
 
+class Ranges(enum.Enum):
+    data = "data"  # from the registered nominal arm's residuals (zrp_ga.problems.measured.gene_half_widths)
+    fixed = "fixed"  # +-axis_error and +-body_error, times search_scale
+
+
+class ValidationRegistration(enum.Enum):
+    none = "none"  # the validation poses are in the calibration's frame
+    rigid = "rigid"  # another instrument frame: predictions moved rigidly onto the measurements before scoring
+
+
 @dataclasses.dataclass
 class MeasuredConf(ProblemConf):
     _target_: str = "zrp_ga.problems.measured.build"
@@ -201,11 +211,15 @@ class MeasuredConf(ProblemConf):
     calibration_file: Optional[str] = None  # a path, or pkg:NAME for the data shipped with zrp_ga
     validation_file: Optional[str] = None
     validation_fraction: Optional[float] = None  # or split the calibration file at random
-    drop_bad_rows: bool = False
-    length_unit: str = "m"  # zrp format
-    angle_unit: str = "rad"
+    validation_registration: ValidationRegistration = ValidationRegistration.none
+    known_tools: Optional[Any] = None  # {NAME: [x, y, z]}: tool points of the validation file not in the calibration, offset from the hand's end point in its frame (length_unit)
+    drop_bad_rows: bool = False  # drop rows with bad cells and repeated rows (listed in a warning)
+    length_unit: str = "auto"  # zrp format: m, mm or auto (whichever puts the points within the arm's reach)
+    angle_unit: str = "auto"  # rad, deg or auto (degrees when a joint value is beyond any turn)
+    orientation_convention: Optional[str] = None  # rx, ry, rz: an Euler sequence (XYZ intrinsic, xyz extrinsic, ...) or rotvec
     use_orientation: bool = False  # fit measured orientations too (and the hand orientation)
     use_weights: bool = False  # weight position errors by the rows' standard deviations
+    ranges: Ranges = Ranges.data  # gene ranges: data (x search_scale) or fixed (axis_error, body_error x search_scale)
 
     def check(self, key: str = "problem") -> None:
         super().check(key)
@@ -213,6 +227,20 @@ class MeasuredConf(ProblemConf):
             raise ConfigError(f"{key}.calibration_file: a measured problem needs a file")
         f = self.validation_fraction
         _require(f is None or 0.0 < f < 1.0, f"{key}.validation_fraction", "in (0, 1) or null", f)
+        _require(self.length_unit in ("m", "mm", "auto"), f"{key}.length_unit", "m, mm or auto", self.length_unit)
+        _require(self.angle_unit in ("rad", "deg", "auto"), f"{key}.angle_unit", "rad, deg or auto", self.angle_unit)
+        from zrp_ga.measurements import check_convention
+
+        try:
+            check_convention(self.orientation_convention, f"{key}.orientation_convention")
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        _require(self.known_tools is None or hasattr(self.known_tools, "items"), f"{key}.known_tools",
+                 "a mapping {NAME: [x, y, z]}", self.known_tools)  # fmt: skip
+        for name, offset in (self.known_tools or {}).items():
+            ok = not isinstance(offset, str) and hasattr(offset, "__len__") and len(offset) == 3
+            ok = ok and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in offset)
+            _require(ok, f"{key}.known_tools.{name}", "a list of 3 finite numbers (x, y, z)", offset)
 
 
 @dataclasses.dataclass

@@ -366,6 +366,9 @@ def canonical(layout: Layout, nominal: ZRPRobot, x: ArrayLike) -> Array:
             v = np.zeros(layout.size)
             v[start[i] : start[i] + 3] += d
             v[start[i + 1] : start[i + 1] + 3] -= d
+            if i == n:  # every tool's end point hangs off axis n's point
+                for t in range(2, layout.n_tools + 1):
+                    v[layout.blocks[f"tool{t}"]] -= d
             vectors.append(v)
     if vectors:
         Q = np.linalg.qr(np.array(vectors).T)[0]

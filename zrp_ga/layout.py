@@ -3,9 +3,18 @@
 A genome is the vector of parameter errors ``x`` (K,) added to a nominal robot, ordered as
 :func:`zrp_ga.error_model.parameter_names`: ``du0_1 .. du0_n, db0_2 .. db0_{n+1}`` (the
 paper's 6n), then optionally ``db0_1`` (``base``) and a small rotation ``dphi_h`` of the hand
-(``hand``: ``R_h0 <- exp([dphi_h]x) R_h0``). :meth:`Layout.unpack` turns a population of
-genomes into model arrays, :meth:`Layout.pack` a robot into its genome, :meth:`Layout.robot`
-a genome into a robot; nothing else converts between them.
+(``hand``: ``R_h0 <- exp([dphi_h]x) R_h0``), then the last body vectors of tools 2..T
+(``tools``: several tool points on one hand, laser-tracker practice; tool 1's is ``b0_{n+1}``).
+:meth:`Layout.unpack` turns a population of genomes into model arrays, :meth:`Layout.pack` a
+robot into its genome, :meth:`Layout.robot` a genome into a robot; nothing else converts
+between them.
+
+Several tools. Tool k's end point hangs off the same arm as tool 1's, ``b0_{n+1}^(k)``
+replacing ``b0_{n+1}``. Its nominal vector is tool 1's plus ``R_h0 o_k`` with ``o_k`` its offset
+from tool 1 in the hand frame (``tools``, m, from the registration); its genes add to that
+independently of tool 1's. ``known_tools`` are tools without genes (a validation with a known
+other tool point): their end point is the hand's, averaged over the identified tools
+(``b0_{n+1}^(k) - R_h0 o_k``), plus ``R_h0 o`` with the calibrated hand orientation.
 
 The model turns about the normalised axes ``(u0 + du0) / |u0 + du0|``; the unit-length rows
 of the paper (Eq. 19-20) then keep ``|u0 + du0|`` near one (see :mod:`zrp_ga.problem`).
@@ -25,15 +34,28 @@ from zrp_ga.robot import ZRPRobot
 Array = NDArray[np.float64]
 
 
+Vec3 = tuple[float, float, float]
+
+
 class ModelArrays(NamedTuple):
     """Parameters of P genomes with the population on the last axis, as the compiled kernels
-    take them: unit axes ``U`` (n, 3, P), body vectors ``B`` (n+1, 3, P), hand orientations
-    ``H`` (3, 3, P), and the squared axis lengths before normalising ``length2`` (n, P)."""
+    take them: unit axes ``U`` (n, 3, P), body vectors ``B`` (n+1, 3, P) (tool 1), hand
+    orientations ``H`` (3, 3, P), the squared axis lengths before normalising ``length2``
+    (n, P), and the last body vector of every tool ``ends`` (T, 3, P) (``ends[0]`` is ``B[n]``)."""
 
     U: Array
     B: Array
     H: Array
     length2: Array
+    ends: Array
+
+    def for_tool(self, k: int) -> ModelArrays:
+        """The arrays with tool k's last body vector in ``B`` (tool 0: these arrays)."""
+        if k == 0:
+            return self
+        B = self.B.copy()
+        B[-1] = self.ends[k]
+        return self._replace(B=B)
 
     def population_first(self) -> tuple[Array, Array, Array]:
         """``u0`` (P, n, 3), ``b0`` (P, n+1, 3), ``R_h0`` (P, 3, 3): views, as
@@ -43,27 +65,46 @@ class ModelArrays(NamedTuple):
 
 @dataclasses.dataclass(frozen=True)
 class Layout:
-    """Which parameter errors a genome holds: K = 6n (+3 with ``base``, +3 with ``hand``)."""
+    """Which parameter errors a genome holds: K = 6n (+3 with ``base``, +3 with ``hand``, +3 per
+    tool beyond the first). ``tools``: offsets (m) of tools 2..T from tool 1 in the hand frame;
+    ``known_tools``: the same for tools without genes (module docstring)."""
 
     n: int
     base: bool = False
     hand: bool = False
+    tools: tuple[Vec3, ...] = ()
+    known_tools: tuple[Vec3, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name in ("tools", "known_tools"):
+            value = tuple(tuple(float(v) for v in o) for o in getattr(self, name))
+            if any(len(o) != 3 or not np.all(np.isfinite(o)) for o in value):
+                raise ValueError(f"layout.{name}: expected offsets of 3 finite numbers, got {getattr(self, name)}")
+            object.__setattr__(self, name, value)
+
+    @property
+    def n_tools(self) -> int:
+        """Tools with genes (tool 1 and ``tools``)."""
+        return 1 + len(self.tools)
 
     @property
     def names(self) -> list[str]:
-        return error_model.parameter_names(self.n, self.base, self.hand)
+        names = error_model.parameter_names(self.n, self.base, self.hand)
+        return names + [f"b0_{self.n + 1}{c}_tool{k}" for k in range(2, self.n_tools + 1) for c in "xyz"]
 
     @property
     def size(self) -> int:
-        return 6 * self.n + 3 * self.base + 3 * self.hand
+        return 6 * self.n + 3 * self.base + 3 * self.hand + 3 * len(self.tools)
 
     @property
     def blocks(self) -> dict[str, slice]:
-        """Gene blocks: ``u0`` (axes), ``b0`` (body vectors 2..n+1), ``base``, ``hand``."""
+        """Gene blocks: ``u0`` (axes), ``b0`` (body vectors 2..n+1), ``base``, ``hand``,
+        ``tool2`` .. ``toolT`` (the last body vectors of the other tools)."""
         n = self.n
         out = {"u0": slice(0, 3 * n), "b0": slice(3 * n, 6 * n)}
         k = 6 * n
-        for name, on in (("base", self.base), ("hand", self.hand)):
+        parts = [("base", self.base), ("hand", self.hand)] + [(f"tool{t}", True) for t in range(2, self.n_tools + 1)]
+        for name, on in parts:
             if on:
                 out[name] = slice(k, k + 3)
                 k += 3
@@ -88,11 +129,26 @@ class Layout:
             H = (Rotation.from_rotvec(X[:, blocks["hand"]]).as_matrix() @ nominal.R_h0).transpose(1, 2, 0)
         else:
             H = np.broadcast_to(nominal.R_h0[:, :, None], (3, 3, P))
-        return ModelArrays(U, B, np.ascontiguousarray(H), length2)
+        return ModelArrays(U, B, np.ascontiguousarray(H), length2, self._ends(nominal, B, H, D))
 
-    def pack(self, nominal: ZRPRobot, robot: ZRPRobot) -> Array:
-        """The genome (K,) that turns ``nominal`` into ``robot`` (same joints); the inverse of
-        :meth:`robot` for unit axes."""
+    def _ends(self, nominal: ZRPRobot, B: Array, H: Array, D: Array) -> Array:
+        """The last body vector of every tool (T, 3, P): tool 1, the tools with genes, the known
+        tools (module docstring)."""
+        if not self.tools and not self.known_tools:
+            return B[-1:]
+        ends = [B[-1]]
+        for t, offset in enumerate(self.tools, start=2):
+            ends.append((nominal.b0[-1] + nominal.R_h0 @ offset)[:, None] + D[self.blocks[f"tool{t}"]])
+        if self.known_tools:
+            offsets = np.array(((0.0, 0.0, 0.0),) + self.tools)  # (T, 3), tool 1's is zero
+            hand = np.mean([e - np.einsum("ijp,j->ip", H, o) for e, o in zip(ends, offsets)], axis=0)
+            ends += [hand + np.einsum("ijp,j->ip", H, np.array(o)) for o in self.known_tools]
+        return np.stack(ends)
+
+    def pack(self, nominal: ZRPRobot, robot: ZRPRobot, ends: ArrayLike | None = None) -> Array:
+        """The genome (K,) that turns ``nominal`` into ``robot`` (same joints, tool 1) and whose
+        tools 2..T have the last body vectors ``ends`` ((T-1, 3) m; default: the nominal ones);
+        the inverse of :meth:`robot` for unit axes."""
         from scipy.spatial.transform import Rotation
 
         parts = [(robot.u0 - nominal.u0).ravel(), (robot.b0[1:] - nominal.b0[1:]).ravel()]
@@ -104,9 +160,14 @@ class Layout:
             raise ValueError("layout: the robots' hand orientations differ, but the genome has no hand genes")
         if not self.base and not np.allclose(robot.b0[0], nominal.b0[0], atol=1e-15):
             raise ValueError("layout: the robots' base points differ, but the genome has no base genes")
+        if self.tools:
+            nominal_ends = nominal.b0[-1] + np.array(self.tools) @ nominal.R_h0.T
+            ends = nominal_ends if ends is None else np.asarray(ends, dtype=float).reshape(len(self.tools), 3)
+            parts.append((ends - nominal_ends).ravel())
         return np.concatenate(parts)
 
-    def robot(self, nominal: ZRPRobot, x: ArrayLike, name: str | None = None) -> ZRPRobot:
-        """The robot of one genome ``x`` (K,), axes normalised."""
-        u0, b0, R_h0 = (a[0] for a in self.unpack(nominal, x).population_first())
+    def robot(self, nominal: ZRPRobot, x: ArrayLike, name: str | None = None, tool: int = 0) -> ZRPRobot:
+        """The robot of one genome ``x`` (K,) with the end point of tool ``tool`` (0: tool 1;
+        then the tools with genes, then the known ones), axes normalised."""
+        u0, b0, R_h0 = (a[0] for a in self.unpack(nominal, x).for_tool(tool).population_first())
         return nominal.replace(u0=u0, b0=b0, R_h0=R_h0, name=name or nominal.name, normalize=True)

@@ -1,21 +1,34 @@
 """Measurement files: a documented CSV format and the UR10 laser-tracker adapter.
 
-The zrp_ga CSV format (comma-separated, decimal point, one header line, one row per pose):
+The zrp_ga CSV format (comma-separated, decimal point, one header line, one row per measured
+point; blank lines are skipped and do not change the line numbers of the others):
 
 | column | required | what |
 | --- | --- | --- |
-| ``q1 .. qn`` | yes | joint values, one column per joint (``angle_unit`` for revolute joints, ``length_unit`` for prismatic ones) |
+| ``q1 .. qn`` | yes | joint values, one column per joint: ``angle_unit`` for revolute joints, ``length_unit`` for prismatic ones |
 | ``x, y, z`` | yes | the measured point, in the instrument's frame (``length_unit``) |
-| ``rx, ry, rz`` | no | measured orientation as Euler angles (``euler``, default ``XYZ`` = intrinsic x-y-z, ``angle_unit``) |
-| ``sx, sy, sz`` | no | standard deviations of x, y, z (``length_unit``), kept as the rows' weights |
-| ``tool`` | no | which tool point was measured (a name); one tool point per file is supported |
+| ``rx, ry, rz`` | no | measured orientation of the tool, in the convention stated by ``orientation_convention`` (``angle_unit``) |
+| ``sx, sy, sz`` | no | standard deviations of x, y, z (``length_unit``, > 0), kept as the rows' weights |
+| ``tool`` | no | which tool point was measured (a name, e.g. ``A``): several reflectors on the flange, one arm |
+
+Units: ``length_unit`` ``m``, ``mm`` or ``auto`` (metres or millimetres, whichever puts the
+points within the arm's reach: :func:`resolve_length_unit`); ``angle_unit`` ``rad``, ``deg`` or
+``auto`` (degrees when a revolute joint value lies beyond any turn the arm can make in radians).
+Orientation conventions: an Euler sequence as :func:`scipy.spatial.transform.Rotation.from_euler`
+reads it (``XYZ``: intrinsic x-y'-z'', ``xyz``: extrinsic, any order), or ``rotvec``, the rotation
+vector that Universal Robots' controllers report as ``rx, ry, rz``. Orientation columns are
+ignored until a convention is stated.
 
 ``ur10_ipa`` reads the files of Landgraf et al. (semicolon-separated, decimal comma, joint
 angles in rad, positions in mm, orientations in degrees, intrinsic XYZ Euler).
 
-Every problem in a file is reported by file, line (as a text editor counts, the header being
-line 1) and column. Rows with a bad cell stop the reading unless ``drop_bad_rows`` is set, in
-which case they are dropped and listed in the warning.
+Every problem in a file is one ValueError naming the file, the line (as a text editor counts,
+the header being line 1) and the column: a missing or unreadable file, a missing column, a cell
+that is empty, not a number, not finite or absurd (a length beyond 1e4 m, an angle beyond 100
+rad, a joint value beyond any turn of the arm, a standard deviation <= 0), a point far outside
+the arm's reach, rows that repeat earlier rows exactly. Rows with a bad cell and repeated rows
+stop the reading unless ``drop_bad_rows`` is set, in which case they are dropped and listed in
+the warning.
 """
 
 from __future__ import annotations
@@ -26,21 +39,28 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-
-Array = NDArray[np.float64]
 from scipy.spatial.transform import Rotation
 
+from zrp_ga.robot import MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
+
+Array = NDArray[np.float64]
 
 log = logging.getLogger(__name__)
 
 LENGTH = {"m": 1.0, "mm": 1e-3}
 ANGLE = {"rad": 1.0, "deg": np.pi / 180.0}
+AUTO = "auto"
 UR_JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
+ROTVEC = "rotvec"
+TOOL_ALLOWANCE_M = 0.5  # how far a tool point may reach beyond the arm's end point, for unit checks
 
 
 @dataclasses.dataclass(frozen=True)
 class Format:
-    """Where the numbers are in a file, and their units."""
+    """Where the numbers are in a file, and their units: ``length_unit`` for positions, standard
+    deviations and prismatic joints, ``joint_unit`` for revolute joints, ``angle_unit`` for
+    orientations (``auto`` as in the module docstring); ``orientation_convention`` an Euler
+    sequence or ``rotvec``, None when unstated (the orientation columns are then not read)."""
 
     joints: list[str]
     position: list[str]
@@ -52,29 +72,43 @@ class Format:
     length_unit: str = "m"
     angle_unit: str = "rad"
     joint_unit: str = "rad"
-    euler: str = "XYZ"
+    orientation_convention: str | None = None
 
 
-def zrp_format(n: int, length_unit: str = "m", angle_unit: str = "rad") -> Format:
+def zrp_format(n: int, length_unit: str = "m", angle_unit: str = "rad", orientation_convention: str | None = None) -> Format:
+    """The zrp_ga CSV format for an arm of n joints (module docstring)."""
     return Format(joints=[f"q{i}" for i in range(1, n + 1)], position=["x", "y", "z"], orientation=["rx", "ry", "rz"],
                   std=["sx", "sy", "sz"], tool="tool", length_unit=length_unit, angle_unit=angle_unit,
-                  joint_unit=angle_unit)  # fmt: skip
+                  joint_unit=angle_unit, orientation_convention=orientation_convention)  # fmt: skip
 
 
 UR10_IPA = Format(
     joints=UR_JOINTS, position=["measurement_x", "measurement_y", "measurement_z"],
     orientation=["measurement_rx", "measurement_ry", "measurement_rz"],
     std=["measurement_std_x", "measurement_std_y", "measurement_std_z"], sep=";", decimal=",",
-    length_unit="mm", angle_unit="deg", joint_unit="rad", euler="XYZ",
+    length_unit="mm", angle_unit="deg", joint_unit="rad", orientation_convention="XYZ",
 )  # fmt: skip
+
+
+def check_convention(convention: str | None, what: str) -> None:
+    """ValueError naming ``what`` unless ``convention`` is None, ``rotvec`` or an Euler sequence."""
+    if convention is None or convention == ROTVEC:
+        return
+    c = str(convention)
+    euler = len(c) == 3 and (set(c) <= set("xyz") or set(c) <= set("XYZ")) and c[0] != c[1] and c[1] != c[2]
+    if not euler:
+        raise ValueError(f"{what}: {convention!r} is neither an Euler sequence (e.g. XYZ intrinsic, xyz extrinsic, "
+                         "ZYX) nor rotvec")  # fmt: skip
 
 
 @dataclasses.dataclass(frozen=True)
 class Measurements:
-    """Measured poses, SI units: joint values ``q`` (M, n) as given to the model (rad, m),
+    """Measured points, SI units: joint values ``q`` (M, n) as given to the model (rad, m),
     positions ``p`` (M, 3) m, orientations ``R`` (M, 3, 3) or None for position-only data;
     optional position weights (M, 3) on the position errors, the positions' standard deviations
-    ``std`` (M, 3) m, and where the rows came from (``source`` and each row's file ``lines``)."""
+    ``std`` (M, 3) m; which tool point each row measured, ``tool`` (M,) indices into
+    ``tool_names`` (None: one tool); where the rows came from (``source`` and each row's file
+    ``lines``) and the ``units`` (length, angle) the file was read in."""
 
     q: Array
     p: Array
@@ -83,6 +117,9 @@ class Measurements:
     std: Array | None = None
     source: str = "measurements"
     lines: NDArray[np.int64] | None = None
+    tool: NDArray[np.int64] | None = None
+    tool_names: tuple[str, ...] = ()
+    units: tuple[str, str] = ("m", "rad")
 
     def __post_init__(self) -> None:
         q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -99,6 +136,12 @@ class Measurements:
             object.__setattr__(self, name, a)
         lines = np.arange(M) + 1 if self.lines is None else np.asarray(self.lines, dtype=np.int64)
         object.__setattr__(self, "lines", lines)
+        if self.tool is not None:
+            tool = np.asarray(self.tool, dtype=np.int64)
+            if tool.shape != (M,) or (M and (tool.min() < 0 or tool.max() >= len(self.tool_names))):
+                raise ValueError(f"measurements.tool: expected {M} indices into tool_names {self.tool_names}")
+            object.__setattr__(self, "tool", tool)
+            object.__setattr__(self, "tool_names", tuple(self.tool_names))
 
     @property
     def M(self) -> int:
@@ -107,6 +150,11 @@ class Measurements:
     @property
     def position_only(self) -> bool:
         return self.R is None
+
+    @property
+    def tools(self) -> NDArray[np.int64]:
+        """Tool index of every row (M,): zeros when the data name no tools."""
+        return np.zeros(self.M, dtype=np.int64) if self.tool is None else self.tool
 
     def for_calibration(self, orientation: bool = False, weights: bool = False) -> Measurements:
         """What a problem sees: orientations only if asked; with ``weights``, each position error
@@ -120,67 +168,287 @@ class Measurements:
         """The rows ``rows`` (indices or a mask), with their file lines."""
         pick = lambda a: None if a is None else a[rows]  # noqa: E731
         return dataclasses.replace(self, q=self.q[rows], p=self.p[rows], R=pick(self.R), weights=pick(self.weights),
-                                   std=pick(self.std), lines=self.lines[rows])  # fmt: skip
+                                   std=pick(self.std), lines=self.lines[rows], tool=pick(self.tool))  # fmt: skip
+
+    def with_tool_names(self, names: tuple[str, ...] | list[str]) -> Measurements:
+        """The same rows with tool indices into ``names``; a tool not among them is an error
+        naming the file, the line and the column."""
+        names = tuple(names)
+        if self.tool is None:
+            return dataclasses.replace(self, tool=np.zeros(self.M, dtype=np.int64), tool_names=names[:1] or ("tool",))
+        index = {name: k for k, name in enumerate(names)}
+        for k, name in enumerate(self.tool_names):
+            if name not in index:
+                row = int(np.flatnonzero(self.tool == k)[0])
+                raise ValueError(f"{self.source}, line {self.lines[row]}, column 'tool': tool {name!r} is neither among the "
+                                 f"calibration's tools ({', '.join(names)}) nor a known tool (problem.known_tools)")  # fmt: skip
+        remap = np.array([index[name] for name in self.tool_names], dtype=np.int64)
+        return dataclasses.replace(self, tool=remap[self.tool], tool_names=names)
 
 
-def read(path: str | Path, fmt: Format, n_joints: int, drop_bad_rows: bool = False) -> Measurements:
-    """Read a measurement file; ValueError naming file, line and column for anything wrong."""
+def read(path: str | Path, fmt: Format, robot: ZRPRobot, drop_bad_rows: bool = False) -> Measurements:
+    """Read a measurement file for ``robot`` (its joint types decide the joint units, its reach
+    the checks and ``auto`` units); ValueError naming file, line and column for anything wrong."""
+    path = Path(path)
+    _check_units(path, fmt)
+    raw, lines = _table(path, fmt)
+    columns = _columns(path, raw, fmt, robot.n)
+    values = np.column_stack([_numbers(raw[c], fmt.decimal) for c in columns]) if len(raw) else np.empty((0, len(columns)))
+    tools = raw[fmt.tool].str.strip().to_numpy(dtype=str) if fmt.tool in raw.columns else None
+    units = _resolve_units(path, fmt, robot, columns, values)
+    bad = _bad_cells(values, columns, units, fmt, robot, tools)
+    values, raw, lines, tools = _drop(path, bad, raw, columns, values, lines, tools, drop_bad_rows)
+    if len(values) == 0:
+        raise ValueError(f"{path}: no measurement rows")
+    values, lines, tools = _drop_repeats(path, values, lines, tools, drop_bad_rows)
+    return _measurements(fmt, robot, columns, values, lines, tools, units, str(path))
+
+
+def _check_units(path: Path, fmt: Format) -> None:
+    for unit, table in ((fmt.length_unit, LENGTH), (fmt.angle_unit, ANGLE), (fmt.joint_unit, ANGLE)):
+        if unit not in table and unit != AUTO:
+            raise ValueError(f"{path}: unknown unit {unit!r}; known: {', '.join(table)}, {AUTO}")
+    check_convention(fmt.orientation_convention, f"{path}: orientation convention")
+
+
+def _table(path: Path, fmt: Format):
+    """The file's cells as text (pandas DataFrame) and each row's line in the file; blank lines
+    are dropped after counting them."""
     import pandas as pd
 
-    path = Path(path)
-    for unit, table in ((fmt.length_unit, LENGTH), (fmt.angle_unit, ANGLE), (fmt.joint_unit, ANGLE)):
-        if unit not in table:
-            raise ValueError(f"{path}: unknown unit {unit!r}; known: {', '.join(table)}")
-    if len(fmt.joints) != n_joints:
-        raise ValueError(f"{path}: the format has {len(fmt.joints)} joint columns, the robot has {n_joints} joints")
+    if not path.exists():
+        raise ValueError(f"{path}: no such file")
+    if path.is_dir():
+        raise ValueError(f"{path}: is a directory, expected a measurement file (.csv)")
     try:
-        raw = pd.read_csv(path, sep=fmt.sep, dtype=str, keep_default_na=False)
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no such file") from None
+        with open(path, "rb") as f:
+            head = f.read(4096)
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if b"\0" in head:
+        raise ValueError(f"{path}: not a text file")
+    try:
+        raw = pd.read_csv(path, sep=fmt.sep, dtype=str, keep_default_na=False, skip_blank_lines=False)
     except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
         raise ValueError(f"{path}: cannot be read as a '{fmt.sep}'-separated file ({exc})".replace("\n", " ")) from None
-    raw.columns = [c.strip() for c in raw.columns]
+    raw.columns = [str(c).strip() for c in raw.columns]
+    lines = np.arange(len(raw)) + 2  # the header is line 1
+    filled = (raw.apply(lambda col: col.str.strip()) != "").any(axis=1).to_numpy() if len(raw) else np.zeros(0, bool)
+    return raw[filled].reset_index(drop=True), lines[filled]
+
+
+def _columns(path: Path, raw, fmt: Format, n: int) -> list[str]:
+    """The numeric columns to read: joints and positions, orientation (with a stated convention)
+    and standard deviations when all three of a group are present."""
     if fmt.joints[0] == "q1":  # generic format: count the q columns to name a wrong joint count
         qs = [c for c in raw.columns if c.startswith("q") and c[1:].isdigit()]
-        if qs and len(qs) != n_joints:
-            raise ValueError(f"{path}: {len(qs)} joint columns ({', '.join(qs)}), but the robot has {n_joints} joints")
+        if qs and len(qs) != n:
+            raise ValueError(f"{path}: {len(qs)} joint columns ({', '.join(qs)}), but the robot has {n} joints")
+    if len(fmt.joints) != n:
+        raise ValueError(f"{path}: the format has {len(fmt.joints)} joint columns, the robot has {n} joints")
     required = fmt.joints + fmt.position
     missing = [c for c in required if c not in raw.columns]
     if missing:
+        hint = ""
+        if len(raw.columns) == 1 and any(s in raw.columns[0] for s in ";\t,"):
+            hint = f"; is the file separated by something else than {fmt.sep!r}?"
         raise ValueError(f"{path}: missing column {missing[0]!r}" + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else "")
-                         + f"; columns found: {', '.join(raw.columns)}")  # fmt: skip
-    optional = [c for group in (fmt.orientation, fmt.std) if group and all(c in raw.columns for c in group) for c in group]
-    columns = required + optional
-    values = pd.DataFrame({c: pd.to_numeric(raw[c].str.strip().str.replace(fmt.decimal, ".", regex=False), errors="coerce")
-                           for c in columns})  # fmt: skip
-    bad = ~np.isfinite(values.to_numpy(dtype=float))
-    lines = np.arange(len(raw)) + 2  # the header is line 1
-    if bad.any():
-        cells = [(int(lines[r]), columns[c], raw[columns[c]].iloc[r]) for r, c in zip(*np.nonzero(bad))]
-        line, col, text = cells[0]
-        what = "empty" if text.strip() == "" else f"{text!r} is not a finite number"
-        first = f"{path}, line {line}, column {col!r}: {what}"
-        rows = np.unique(np.nonzero(bad)[0])
-        if not drop_bad_rows:
-            more = f" ({len(cells) - 1} more bad cells in {len(rows)} rows)" if len(cells) > 1 else ""
-            raise ValueError(first + more + "; set problem.drop_bad_rows=true to drop such rows")
-        log.warning("%s; dropped %d rows with bad cells (lines %s)", first, len(rows),
-                    ", ".join(str(lines[r]) for r in rows[:20]) + (" ..." if len(rows) > 20 else ""))  # fmt: skip
-        keep = np.setdiff1d(np.arange(len(raw)), rows)
-        values, raw, lines = values.iloc[keep], raw.iloc[keep], lines[keep]
-    if len(values) == 0:
-        raise ValueError(f"{path}: no measurement rows")
-    if fmt.tool and fmt.tool in raw.columns and raw[fmt.tool].nunique() > 1:
-        raise ValueError(f"{path}, column {fmt.tool!r}: {raw[fmt.tool].nunique()} tool points; one per file is supported")
-    length, angle = LENGTH[fmt.length_unit], ANGLE[fmt.angle_unit]
-    q = values[fmt.joints].to_numpy(dtype=float) * ANGLE[fmt.joint_unit]
-    p = values[fmt.position].to_numpy(dtype=float) * length
+                         + f"; columns found: {', '.join(raw.columns)}{hint}")  # fmt: skip
+    groups = [fmt.std] + ([fmt.orientation] if fmt.orientation_convention else [])
+    return required + [c for g in groups if g and all(c in raw.columns for c in g) for c in g]
+
+
+def _numbers(column, decimal: str) -> Array:
+    import pandas as pd
+
+    text = column.str.strip().str.replace(decimal, ".", regex=False)
+    return pd.to_numeric(text, errors="coerce").to_numpy(dtype=float)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Units:
+    """SI factors of a file: ``length`` (positions, std, prismatic joints), ``joint`` (revolute
+    joints), ``angle`` (orientations), and their names in that order."""
+
+    length: float
+    joint: float
+    angle: float
+    names: tuple[str, str, str]
+
+
+def _resolve_units(path: Path, fmt: Format, robot: ZRPRobot, columns: list[str], values: Array) -> _Units:
+    """The file's units, ``auto`` ones decided from its numbers (rows with a cell that no unit
+    makes sensible left out: they are refused by line and column afterwards); a stated length
+    unit that cannot be right for this arm is an error with a hint."""
+    pos = values[:, [columns.index(c) for c in fmt.position]]
+    rev = values[:, [columns.index(c) for c, t in zip(fmt.joints, robot.joint_types) if t == "R"]]
+    with np.errstate(invalid="ignore"):
+        sane = np.all(np.isfinite(values), axis=1) & np.all(np.abs(pos) * LENGTH["mm"] <= MAX_LENGTH_M, axis=1)
+        sane &= np.all(np.abs(rev) * ANGLE["deg"] <= MAX_ANGLE_RAD, axis=1)
+    length = resolve_length_unit(path, pos[sane], robot, fmt.length_unit)
+    joint = resolve_joint_unit(rev[sane], robot, fmt.joint_unit)
+    angle = joint if fmt.angle_unit == AUTO else fmt.angle_unit
+    return _Units(LENGTH[length], ANGLE[joint], ANGLE[angle], (length, joint, angle))
+
+
+def reach_m(robot: ZRPRobot) -> float:
+    """How far the end point can be from the point on axis 1 (m): the body vectors' lengths and
+    the prismatic joints' largest extensions."""
+    stroke = np.abs(robot.joint_limits[robot.prismatic]).max(axis=1).sum() if robot.prismatic.any() else 0.0
+    return float(np.linalg.norm(robot.b0[1:], axis=1).sum() + stroke)
+
+
+def resolve_length_unit(path: Path, points: Array, robot: ZRPRobot, unit: str) -> str:
+    """``m`` or ``mm`` for measured points (M, 3) in file units. Points a tool on the arm can
+    reach spread over at most twice its reach plus a tool (the spread: twice the median
+    distance from the median point, so that absurd cells in fewer than half of the rows do not
+    decide it; they are refused later, by line and column); a calibration's spread over more
+    than 1% of the reach. ``auto`` takes the one unit in which both hold (none or both: an
+    error asking for the unit); a stated unit in which the points spread too far is an error
+    naming the unit that would fit."""
+    if len(points) < 2:
+        return "m" if unit == AUTO else unit
+    spread = 2.0 * float(np.median(np.linalg.norm(points - np.median(points, axis=0), axis=1)))
+    reach = reach_m(robot)
+    within = {u for u in LENGTH if spread * LENGTH[u] <= 2.0 * (reach + TOOL_ALLOWANCE_M)}
+    fits = [u for u in LENGTH if u in within and spread * LENGTH[u] >= 0.01 * reach]
+    where = f"{path}: the measured points spread over {spread:.4g} file units and {robot.name} reaches {reach:.3g} m"
+    if unit == AUTO:
+        if len(fits) != 1:
+            raise ValueError(f"{where}: cannot tell metres from millimetres; set problem.length_unit=m or mm")
+        return fits[0]
+    if unit not in within:
+        hint = f" (problem.length_unit={fits[0]}?)" if fits else ""
+        raise ValueError(f"{where}: they cannot be in {unit}{hint}")
+    return unit
+
+
+def turn_rad(robot: ZRPRobot) -> float:
+    """The largest revolute joint value (rad) a file may hold: the largest stated limit, at
+    least a full turn, plus 5%."""
+    limits = np.abs(robot.joint_limits[~robot.prismatic])
+    return 1.05 * max(2 * np.pi, float(limits.max(initial=0.0)))
+
+
+def resolve_joint_unit(q: Array, robot: ZRPRobot, unit: str) -> str:
+    """``rad`` or ``deg`` for revolute joint values (M, r) in file units: ``auto`` reads radians
+    unless a value lies beyond :func:`turn_rad`."""
+    if unit != AUTO:
+        return unit
+    return "rad" if q.size == 0 or float(np.abs(q).max()) <= turn_rad(robot) else "deg"
+
+
+def _bad_cells(values: Array, columns: list[str], u: _Units, fmt: Format, robot: ZRPRobot, tools) -> list[tuple[int, int, str | None]]:
+    """(row, column, what) of every bad cell (what None: empty or not a finite number, said by
+    :func:`_drop` from the text): absurd for its kind, a joint value beyond any turn, a standard
+    deviation <= 0, a point far from the others; an empty tool name (column ``len(columns)``)."""
+    kind = {c: "P" if t == "P" else "R" for c, t in zip(fmt.joints, robot.joint_types)}
+    kind.update({c: "L" for c in fmt.position}, **{c: "S" for c in fmt.std or ()}, **{c: "A" for c in fmt.orientation or ()})
+    length, joint, angle = u.names
+    hint = "; in degrees? problem.angle_unit=deg" if joint == "rad" else ""
+    bounds = {"P": (u.length, MAX_LENGTH_M, "m", length, "absurd", ""), "L": (u.length, MAX_LENGTH_M, "m", length, "absurd", ""),
+              "S": (u.length, MAX_LENGTH_M, "m", length, "absurd", ""), "A": (u.angle, MAX_ANGLE_RAD, "rad", angle, "absurd", ""),
+              "R": (u.joint, turn_rad(robot), "rad", joint, f"beyond any turn of {robot.name}", hint)}  # fmt: skip
+    bad: list[tuple[int, int, str | None]] = []
+    with np.errstate(invalid="ignore"):
+        for j, c in enumerate(columns):
+            scale, bound, si, unit, what, more = bounds[kind[c]]
+            v = values[:, j]
+            bad += [(r, j, None) for r in np.flatnonzero(~np.isfinite(v))]
+            bad += [(r, j, f"{v[r]:g} {unit} is {what} (more than {bound:.4g} {si}{more})")
+                    for r in np.flatnonzero(np.abs(v) * scale > bound)]  # fmt: skip
+            if kind[c] == "S":
+                bad += [(r, j, f"{v[r]:g}: a standard deviation must be > 0") for r in np.flatnonzero(v <= 0)]
+    bad += _far_points(values, columns, fmt, u, robot, {r for r, _, _ in bad})
+    if tools is not None:
+        bad += [(r, len(columns), "empty") for r in np.flatnonzero(tools == "")]
+    return sorted(bad, key=lambda b: (b[0], b[1]))
+
+
+def _far_points(values: Array, columns: list[str], fmt: Format, u: _Units, robot: ZRPRobot, skip: set) -> list:
+    """Points farther from the median point than the arm can carry a tool (three times its
+    reach plus a tool): the cell of x, y or z farthest off is named."""
+    cols = [columns.index(c) for c in fmt.position]
+    rows = np.array([r for r in range(len(values)) if r not in skip], dtype=int)
+    if len(rows) < 3:
+        return []
+    off = values[np.ix_(rows, cols)] * u.length
+    off -= np.median(off, axis=0)
+    reach = reach_m(robot)
+    out = []
+    for k in np.flatnonzero(np.linalg.norm(off, axis=1) > 3.0 * (reach + TOOL_ALLOWANCE_M)):
+        j = cols[int(np.argmax(np.abs(off[k])))]
+        out.append((rows[k], j, f"{values[rows[k], j]:g} {u.names[0]} puts the point {np.linalg.norm(off[k]):.4g} m from the "
+                                f"others; {robot.name} reaches {reach:.3g} m"))  # fmt: skip
+    return out
+
+
+def _drop(path: Path, bad: list, raw, columns: list[str], values: Array, lines, tools, drop_bad_rows: bool):
+    """Stop at the first bad cell, or (``drop_bad_rows``) drop the rows that have one."""
+    if not bad:
+        return values, raw, lines, tools
+    names = columns + ["tool"]
+    cells = []
+    for r, j, what in bad:
+        text = raw[names[j]].iloc[r] if names[j] in raw.columns else ""
+        if what is None:
+            what = "empty" if text.strip() == "" else f"{text.strip()!r} is not a finite number"
+        cells.append((int(lines[r]), names[j], what))
+    line, col, what = cells[0]
+    first = f"{path}, line {line}, column {col!r}: {what}"
+    rows = np.unique([r for r, _, _ in bad])
+    if not drop_bad_rows:
+        more = f" ({len(cells) - 1} more bad cells in {len(rows)} rows)" if len(cells) > 1 else ""
+        raise ValueError(first + more + "; set problem.drop_bad_rows=true to drop such rows")
+    log.warning("%s; dropped %d rows with bad cells (lines %s)", first, len(rows), _listed(lines[rows]))
+    keep = np.setdiff1d(np.arange(len(values)), rows)
+    return values[keep], raw.iloc[keep], lines[keep], None if tools is None else tools[keep]
+
+
+def _drop_repeats(path: Path, values: Array, lines, tools, drop_bad_rows: bool):
+    """Rows that repeat an earlier row exactly (every number and the tool): a copy, not a new
+    measurement (a tracker never reads the same point twice to the last digit)."""
+    import pandas as pd
+
+    frame = pd.DataFrame(values)
+    if tools is not None:
+        frame["tool"] = tools
+    repeat = frame.duplicated(keep="first").to_numpy()
+    if not repeat.any():
+        return values, lines, tools
+    first = int(np.flatnonzero(repeat)[0])
+    same = int(np.flatnonzero((frame == frame.iloc[first]).all(axis=1).to_numpy())[0])
+    what = (f"{path}: {int(repeat.sum())} rows repeat earlier rows exactly (first: line {lines[first]} repeats "
+            f"line {lines[same]})")  # fmt: skip
+    if not drop_bad_rows:
+        raise ValueError(what + "; remove them, or set problem.drop_bad_rows=true to drop them")
+    log.warning("%s; dropped them (lines %s)", what, _listed(lines[repeat]))
+    keep = ~repeat
+    return values[keep], lines[keep], None if tools is None else tools[keep]
+
+
+def _listed(lines) -> str:
+    return ", ".join(str(v) for v in lines[:20]) + (" ..." if len(lines) > 20 else "")
+
+
+def _measurements(fmt: Format, robot: ZRPRobot, columns: list[str], values: Array, lines, tools, u: _Units, source: str) -> Measurements:
+    """The checked numbers in SI units; tools numbered in the order they first appear."""
+    col = {c: values[:, j] for j, c in enumerate(columns)}
+    q = np.column_stack([col[c] * (u.length if t == "P" else u.joint) for c, t in zip(fmt.joints, robot.joint_types)])
+    p = np.column_stack([col[c] for c in fmt.position]) * u.length
     R = std = None
-    if fmt.orientation and all(c in values for c in fmt.orientation):
-        R = Rotation.from_euler(fmt.euler, values[fmt.orientation].to_numpy(dtype=float) * angle).as_matrix()
-    if fmt.std and all(c in values for c in fmt.std):
-        std = values[fmt.std].to_numpy(dtype=float) * length
-    return Measurements(q, p, R, std=std, source=str(path), lines=lines)
+    if fmt.orientation and fmt.orientation[0] in col:
+        angles = np.column_stack([col[c] for c in fmt.orientation]) * u.angle
+        conv = fmt.orientation_convention
+        R = (Rotation.from_rotvec(angles) if conv == ROTVEC else Rotation.from_euler(conv, angles)).as_matrix()
+    if fmt.std and fmt.std[0] in col:
+        std = np.column_stack([col[c] for c in fmt.std]) * u.length
+    tool, names = None, ()
+    if tools is not None:
+        names = tuple(dict.fromkeys(tools.tolist()))  # first appearance order
+        index = {name: k for k, name in enumerate(names)}
+        tool = np.array([index[t] for t in tools], dtype=np.int64)
+    return Measurements(q, p, R, std=std, source=source, lines=lines, tool=tool, tool_names=names, units=u.names[:2])
 
 
 def split(data: Measurements, fraction: float, rng: np.random.Generator) -> tuple[Measurements, Measurements]:

@@ -1,6 +1,12 @@
 """How good a calibration is, in SI units: position errors on poses (m), their RMS and maximum,
 and the distance to the true parameters where they are known (simulation). Files carry the
-unit in the column name (``val_rms_mm``); the conversion happens where they are written."""
+unit in the column name (``val_rms_mm``); the conversion happens where they are written.
+
+Validation as engineers do it: in the calibration's frame (``registration="none"``), or in
+another instrument frame (``"rigid"``: the tracker moved between the sets, so each model's
+predictions are first moved rigidly onto the measured points, :func:`zrp_ga.registration.align`,
+and what is left is scored), with the calibration's tool points or a known other one (the
+layout's ``known_tools``)."""
 
 from __future__ import annotations
 
@@ -17,13 +23,36 @@ from zrp_ga.robot import ZRPRobot
 Array = NDArray[np.float64]
 
 
-def position_errors(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: Measurements) -> Array:
+REGISTRATIONS = ("none", "rigid")
+
+
+def predicted_positions(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: Measurements) -> Array:
+    """Predicted positions (P, M, 3), m, of genomes X (P, K) or (K,) at every pose of ``data``,
+    each with its tool (``data.tool`` indexes the layout's tools, then its known tools)."""
+    m = layout.unpack(nominal, X)
+    tools = data.tools
+    p = np.empty((m.U.shape[2], data.M, 3))
+    for k in np.unique(tools):
+        rows = tools == k
+        u0, b0, R_h0 = m.for_tool(int(k)).population_first()
+        p[:, rows] = kinematics.forward_batch(u0, b0, R_h0, data.q[rows], nominal.prismatic)[1]
+    return p
+
+
+def position_errors(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: Measurements, registration: str = "none") -> Array:
     """Distance (m) between measured and predicted positions at every pose of ``data``: (M,) for
-    one genome (K,), (P, M) for a population (P, K); NaN where the genes break the model."""
+    one genome (K,), (P, M) for a population (P, K); NaN where the genes break the model. With
+    ``registration="rigid"`` each genome's predictions are first moved rigidly onto the
+    measurements (module docstring)."""
+    from zrp_ga.registration import align
+
+    if registration not in REGISTRATIONS:
+        raise ValueError(f"problem.validation_registration: {registration!r}, expected one of {', '.join(REGISTRATIONS)}")
     X = np.asarray(X, dtype=float)
-    u0, b0, R_h0 = layout.unpack(nominal, X).population_first()
     with np.errstate(all="ignore"):
-        _, p = kinematics.forward_batch(u0, b0, R_h0, data.q, nominal.prismatic)
+        p = predicted_positions(layout, nominal, X, data)
+        if registration == "rigid":
+            p = np.array([align(pk, data.p) if np.all(np.isfinite(pk)) else pk for pk in p])
         err = np.linalg.norm(data.p[None] - p, axis=2)
     return err[0] if X.ndim == 1 else err
 
@@ -44,6 +73,7 @@ class Judge:
     validation: Measurements | None = None
     truth: Array | None = None
     projector: Array | None = None  # onto the identifiable parameter directions (for param_err)
+    registration: str = "none"  # of the predictions onto the validation poses (module docstring)
 
     def validation_errors(self, x: ArrayLike) -> tuple[Array, Array]:
         """RMS and max position error (m) on the validation poses, each (P,); NaN without them."""
@@ -51,7 +81,7 @@ class Judge:
         if self.validation is None:
             nan = np.full(X.shape[0], np.nan)
             return nan, nan
-        err = position_errors(self.layout, self.nominal, X, self.validation)
+        err = position_errors(self.layout, self.nominal, X, self.validation, self.registration)
         return np.sqrt(np.mean(err**2, axis=1)), np.max(err, axis=1)
 
     def param_error(self, x: ArrayLike) -> Array:

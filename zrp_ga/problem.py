@@ -14,6 +14,10 @@ axis no longer leaves the axis fixed, and least squares then fits noise with poi
 along the axes (seen with LM before this choice: b0 genes of 14 m).
 ``norm="spectral"`` is the 2-norm of the residual vector, ``"rms"`` divides by the square root
 of its length. Orientation rows are multiplied by ``orientation_weight`` (m per rad).
+
+Several tool points (``data.tool``, the layout's ``tools``): the poses are grouped by tool once,
+and each group is one kernel call with that tool's last body vector; with one tool the cost is
+the single call it always was.
 """
 
 from __future__ import annotations
@@ -67,9 +71,25 @@ class CalibrationProblem:
         if not data.position_only:
             pose = np.hstack([np.full((data.M, 3), self.orientation_weight), pose])
         self._row_weights = np.concatenate([pose.ravel(), np.ones(n)])
-        self._terms = kinematics.joint_terms(data.q, self.nominal.prismatic)
+        self._groups = self._tool_groups()
         self.J_nominal = self._jacobian(np.zeros(K), exact=False)
         self.y_nominal = self._residual(np.zeros(K))  # [dr; dp; 0] of the nominal robot
+
+    def _tool_groups(self) -> list[tuple[int, Array | slice, tuple, Array, Array | None, Array]]:
+        """Per tool with poses: (tool, rows, joint terms, positions, orientations, weights); one
+        group holding every pose (rows a full slice) when the data name one tool."""
+        data, tools = self.data, self.data.tools
+        if tools.max(initial=0) >= self.layout.n_tools:
+            raise ValueError(f"{data.source}: tool {data.tool_names[int(tools.max())]!r} has no genes in the layout "
+                             f"({self.layout.n_tools} tools)")  # fmt: skip
+        groups = []
+        for k in np.unique(tools):
+            rows = slice(None) if np.all(tools == k) else np.flatnonzero(tools == k)
+            R = None if data.position_only else np.ascontiguousarray(data.R[rows])
+            terms = kinematics.joint_terms(data.q[rows], self.nominal.prismatic)
+            groups.append((int(k), rows, terms, np.ascontiguousarray(data.p[rows]), R,
+                           np.ascontiguousarray(self._position_weights[rows])))  # fmt: skip
+        return groups
 
     @property
     def names(self) -> list[str]:
@@ -85,9 +105,10 @@ class CalibrationProblem:
                 total = np.einsum("pr,pr->p", r, r)
             else:
                 m = self.layout.unpack(self.nominal, X)
-                data = self.data
-                sums = kinematics.residual_sums_unchecked(m.U, m.B, m.H, self._terms, data.p, data.R,
-                                                          self._position_weights, kernel=self.kernel.value)  # fmt: skip
+                sums = 0.0
+                for k, _, terms, p, R, w in self._groups:
+                    t = m.for_tool(k)
+                    sums = sums + kinematics.residual_sums_unchecked(t.U, t.B, t.H, terms, p, R, w, kernel=self.kernel.value)
                 unit = 0.5 * (m.length2 - 1.0)
                 total = self.orientation_weight**2 * sums[0] + sums[1] + np.einsum("ip,ip->p", unit, unit)
             if self.norm is Norm.rms:
@@ -108,13 +129,22 @@ class CalibrationProblem:
             return self.J_nominal
         return self._jacobian(np.asarray(x, dtype=float), exact=True)
 
+    def _poses(self, m) -> tuple[Array, Array]:
+        """Modelled hand orientations (M, 3, 3) and positions (M, 3) of one genome's model arrays
+        at every pose, each with its tool."""
+        data = self.data
+        R, p = np.empty((data.M, 3, 3)), np.empty((data.M, 3))
+        for k, rows, *_ in self._groups:
+            u0, b0, R_h0 = m.for_tool(k).population_first()
+            R[rows], p[rows] = (a[0] for a in kinematics.forward_batch(u0, b0, R_h0, data.q[rows], self.nominal.prismatic))
+        return R, p
+
     def _residual(self, x: Array) -> Array:
         """Nonlinear weighted residual: per pose [w dr; dp] (or dp), then -(|u0 + du0|^2 - 1) / 2."""
-        u0, b0, R_h0 = self.layout.unpack(self.nominal, x).population_first()
         data = self.data
-        R, p = kinematics.forward_batch(u0, b0, R_h0, data.q, self.nominal.prismatic)
-        dp = data.p - p[0]
-        pose = dp if data.position_only else np.hstack([error_model.pose_error(data.R, data.p, R[0], p[0])[0], dp])
+        R, p = self._poses(self.layout.unpack(self.nominal, x))
+        dp = data.p - p
+        pose = dp if data.position_only else np.hstack([error_model.pose_error(data.R, data.p, R, p)[0], dp])
         unit = -0.5 * (np.sum((self.nominal.u0 + x[self.layout.blocks["u0"]].reshape(-1, 3)) ** 2, axis=1) - 1.0)
         return np.concatenate([pose.ravel(), unit]) * self._row_weights
 
@@ -127,15 +157,14 @@ class CalibrationProblem:
         raw = self.nominal.u0 + x[blocks["u0"]].reshape(n, 3)
         length = np.linalg.norm(raw, axis=1)
         unit = raw / length[:, None]
-        J = error_model.jacobian_arrays(unit, m.B[:, :, 0], self.nominal.prismatic, data.q, self.layout.base, self.layout.hand)
+        J = self._tool_jacobians(unit, m)
         if data.position_only:
             J = J[:, 3:]
         elif exact:
             if self.layout.hand:  # dexp of the hand rotation vector: its left Jacobian
                 J[:, :3, blocks["hand"]] = J[:, :3, blocks["hand"]] @ so3.left_jacobian(x[blocks["hand"]])
-            u0, b0, R_h0 = m.population_first()
-            R, _ = kinematics.forward_batch(u0, b0, R_h0, data.q, self.nominal.prismatic)
-            W = data.R @ np.swapaxes(R[0], -1, -2)
+            R, _ = self._poses(m)
+            W = data.R @ np.swapaxes(R, -1, -2)
             G = 0.5 * (np.trace(W, axis1=1, axis2=2)[:, None, None] * np.eye(3) - np.swapaxes(W, -1, -2))
             J[:, :3] = G @ J[:, :3]
         # chain rule through the normalisation u / |u|: (I - u_hat u_hat^T) / |u|
@@ -147,6 +176,38 @@ class CalibrationProblem:
             U[i, 3 * i : 3 * i + 3] = raw[i]
         return np.vstack([J.reshape(-1, J.shape[-1]), U]) * self._row_weights[:, None]
 
+    def _tool_jacobians(self, unit: Array, m) -> Array:
+        """Pose Jacobians (M, 6, K) at the unit axes ``unit`` (n, 3) and one genome's model
+        arrays: each tool's poses with its last body vector, whose columns are that tool's genes."""
+        data, layout, n = self.data, self.layout, self.nominal.n
+        if len(self._groups) == 1 and self._groups[0][0] == 0 and not layout.tools:
+            return error_model.jacobian_arrays(unit, m.B[:, :, 0], self.nominal.prismatic, data.q, layout.base, layout.hand)
+        J = np.zeros((data.M, 6, layout.size))
+        core = 6 * n + 3 * layout.base + 3 * layout.hand
+        end = slice(6 * n - 3, 6 * n)  # db0_{n+1}: tool 1's last body vector
+        for k, rows, *_ in self._groups:
+            Jk = error_model.jacobian_arrays(unit, m.for_tool(k).B[:, :, 0], self.nominal.prismatic, data.q[rows],
+                                             layout.base, layout.hand)  # fmt: skip
+            if k:
+                J[rows, :, layout.blocks[f"tool{k + 1}"]] = Jk[:, :, end]
+                Jk[:, :, end] = 0.0
+            J[rows, :, :core] = Jk
+        return J
+
     def identifiability(self) -> error_model.IdentifiabilityReport:
         """Identifiability report of the calibration poses (Jacobian at the nominal parameters)."""
         return error_model.identifiability(self._jacobian(np.zeros(self.layout.size), exact=False), self.names, self.nominal)
+
+
+def model_rank(nominal: ZRPRobot, layout: Layout, position_only: bool, n_poses: int = 60) -> int:
+    """Rank of the stacked error Jacobian (unit rows included) of ``layout`` over ``n_poses``
+    random poses (``numpy.random.default_rng(0)``) shared round-robin by its tools: what the
+    model can identify at best with this kind of data."""
+    from zrp_ga.simulation import random_joints
+
+    T = layout.n_tools
+    q = random_joints(nominal, max(n_poses, T), np.random.default_rng(0))
+    R = None if position_only else np.broadcast_to(np.eye(3), (len(q), 3, 3))
+    data = Measurements(q, np.zeros((len(q), 3)), R, tool=np.arange(len(q)) % T, tool_names=tuple(map(str, range(T))))
+    K = layout.size
+    return int(np.linalg.matrix_rank(CalibrationProblem(nominal, data, layout, -np.ones(K), np.ones(K)).J_nominal))

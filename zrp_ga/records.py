@@ -75,7 +75,8 @@ def versions() -> dict[str, str]:
 
 def params_by_joint(layout: Layout, x: np.ndarray, truth: np.ndarray | None = None) -> list[dict]:
     """Parameter errors by joint (Table 3 style): ``du0_x..z`` of joint i and ``db0_x..z`` of
-    ``b0_{i+1}`` (m); extra rows ``base`` (db0_1) and ``hand`` (rotation vector, rad); the true
+    ``b0_{i+1}`` (m); extra rows ``base`` (db0_1), ``hand`` (rotation vector, rad) and ``tool2`` ..
+    (the other tools' last body vectors, m); the true
     errors in ``true_*`` columns when known."""
     n, blocks = layout.n, layout.blocks
     u_cols, b_cols = ["du0_x", "du0_y", "du0_z"], ["db0_x", "db0_y", "db0_z"]
@@ -83,7 +84,7 @@ def params_by_joint(layout: Layout, x: np.ndarray, truth: np.ndarray | None = No
     def table(v: np.ndarray) -> list[dict]:
         u, b = v[blocks["u0"]].reshape(n, 3), v[blocks["b0"]].reshape(n, 3)
         rows = [{"joint": str(i + 1), **dict(zip(u_cols, u[i])), **dict(zip(b_cols, b[i]))} for i in range(n)]
-        for name, cols in (("base", b_cols), ("hand", u_cols)):
+        for name, cols in [("base", b_cols), ("hand", u_cols)] + [(k, b_cols) for k in blocks if k.startswith("tool")]:
             if name in blocks:
                 rows.append({"joint": name, **dict.fromkeys(u_cols + b_cols, ""), **dict(zip(cols, v[blocks[name]]))})
         return rows

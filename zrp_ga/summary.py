@@ -1,6 +1,24 @@
 """What a run says about itself: the identifiability of its data before it starts, and after
-it ends its files (``best_params.csv``, ``initial_population.csv``, the problem kind's own,
-``summary.json``), the warnings when something is not what it seems, and the console lines."""
+it ends its files (``best_params.csv``, ``initial_population.csv``, the calibrated arm as robot
+files, the problem kind's own, ``summary.json``), the warnings when something is not what it
+seems, and the console lines.
+
+What is returned. The reported genome is the optimiser's best, gauge-fixed for the nonlinear
+cost. When that genome fits the calibration data worse than the nominal arm (or the optimiser
+diverged) on a task that says so (measured data: ``Task.nominal_if_worse``), the nominal arm is
+returned instead: ``best_genome`` is all zero, the robot files are the nominal arm's,
+``final_cost`` is the nominal cost, ``returned`` is ``"nominal"``, the optimiser's own best cost
+stays in ``optimiser_cost`` and a warning says so. In simulated studies the optimiser's result
+is kept (``returned: "optimiser"``) so that benchmarks see what each optimiser found; the
+warning is the same.
+
+Robot files (:func:`write_robot`): every run writes ``calibrated_robot.urdf`` (with the base
+and the first tool as fixed joints: its forward kinematics from link ``world`` to link ``tool``
+is the calibrated model's, :func:`zrp_ga.kinematics.forward`), ``calibrated_robot_dh.yaml``
+and ``calibrated_robot_mdh.yaml`` (standard and modified DH where the calibrated axes allow; the
+remaining mismatch in each header and in ``summary.json``), ``calibrated_robot.yaml`` (ZRP) and ``calibrated_robot_frames.yaml`` (base
+and tool transforms as 4x4 matrices and as xyz + quaternion; every tool under ``tools``).
+"""
 
 from __future__ import annotations
 
@@ -11,8 +29,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
-from zrp_ga import error_model, records
+from zrp_ga import error_model, records, robot_files
 from zrp_ga.algorithms import Result
 from zrp_ga.config import Cost
 from zrp_ga.problems import Task
@@ -20,15 +39,14 @@ from zrp_ga.problems import Task
 log = logging.getLogger("zrp_ga")
 
 
-def model_rank(task: Task, n_poses: int = 60) -> int:
-    """Rank of the error Jacobian over many random poses with this problem's kind of data: what
-    the model can identify at best (the calibration data can only carry less)."""
-    from zrp_ga.simulation import random_joints
+def model_rank(task: Task) -> int:
+    """Rank of the error Jacobian over many random poses with this problem's kind of data and
+    its layout (tools included): what the model can identify at best (the calibration data can
+    only carry less)."""
+    from zrp_ga.problem import model_rank as rank
 
     p = task.problem
-    q = random_joints(p.nominal, n_poses, np.random.default_rng(0))
-    J = error_model.error_jacobian(p.nominal, q, p.data.position_only, p.layout.base, p.layout.hand)
-    return int(np.linalg.matrix_rank(J))
+    return rank(p.nominal, p.layout, p.data.position_only)
 
 
 def diagnostics(task: Task, first: bool) -> dict[str, Any]:
@@ -59,26 +77,57 @@ def _first_in_sweep(instance: str) -> bool:
     return True
 
 
-def warnings(task: Task, result: Result, nominal_cost: float, val: dict[str, float]) -> list[str]:
-    """Whatever makes the result other than it seems: worse than the nominal model on the
-    calibration or validation data, genes on (or beyond) their range bounds, divergence."""
-    p, out = task.problem, []
-    if not np.isfinite(result.cost):
-        out.append(f"the optimiser diverged: its best cost is {result.cost}")
+def worse_than_nominal(result: Result, nominal_cost: float) -> bool:
+    """The optimiser diverged or its best fits the calibration data worse than the nominal arm."""
+    return result.x is None or not np.isfinite(result.cost) or result.cost > nominal_cost
+
+
+def on_bounds(task: Task, x: np.ndarray, reported: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Genes (K,) on a bound and beyond one: on or beyond in the optimiser's genome ``x`` and
+    still within 1% of the range's width of it (or beyond) in the ``reported`` (gauge-fixed)
+    one. Genes that only the exact slides along the axes carry out of range (LM is unbounded
+    and moves freely along them) count as neither."""
+    p = task.problem
+    width = p.upper - p.lower
+    held = (reported <= p.lower + 0.01 * width) | (reported >= p.upper - 0.01 * width)
+    outside = (x < p.lower) | (x > p.upper)
+    on = ~outside & ((x <= p.lower + 1e-9 * width) | (x >= p.upper - 1e-9 * width))
+    return on & held, outside & held
+
+
+def _listed(names: list[str], mask: np.ndarray, k: int = 6) -> str:
+    """The first k names where ``mask`` holds, then "..." if there are more."""
+    chosen = [n for n, b in zip(names, mask) if b]
+    return ", ".join(chosen[:k]) + (" ..." if len(chosen) > k else "")
+
+
+def warnings(task: Task, result: Result, nominal_cost: float, val: dict[str, float], returned: str,
+             reported: np.ndarray) -> list[str]:  # fmt: skip
+    """Whatever makes the result other than it seems: what the problem found while it was
+    built, worse than the nominal model on the calibration or validation data (and what is
+    returned then), genes held by their range bounds (:func:`on_bounds`; ``reported`` is the
+    gauge-fixed optimiser genome), divergence."""
+    p, out = task.problem, list(task.warnings)
+    then = "; the nominal arm is returned instead" if returned == "nominal" else ""
+    if result.x is None or not np.isfinite(result.cost):
+        out.append(f"the optimiser diverged: its best cost is {result.cost}{then}")
     elif result.cost > nominal_cost:
         out.append(f"the calibrated model fits the calibration data worse than the nominal one "
-                   f"(cost {result.cost:.6g} > {nominal_cost:.6g})")  # fmt: skip
+                   f"(cost {result.cost:.6g} > {nominal_cost:.6g}){then}")  # fmt: skip
     if np.isfinite(val["calibrated"]) and val["calibrated"] > val["nominal"]:
         out.append(f"the calibrated model predicts the validation poses worse than the nominal one "
                    f"(RMS {val['calibrated']:.4g} mm > {val['nominal']:.4g} mm)")  # fmt: skip
-    width = p.upper - p.lower
-    low, high = result.x <= p.lower + 1e-9 * width, result.x >= p.upper - 1e-9 * width
-    if np.any(low | high):
-        names = [n for n, b in zip(p.names, low | high) if b]
-        beyond = np.any((result.x < p.lower) | (result.x > p.upper))
-        out.append(f"{len(names)} gene(s) of the best genome lie {'beyond' if beyond else 'on'} their range bounds "
-                   f"({', '.join(names[:6])}{' ...' if len(names) > 6 else ''}): the true errors may be larger than the "
-                   "ranges allow (problem.search_scale, axis_error, body_error)")  # fmt: skip
+    if result.x is None:
+        return out
+    on, beyond = on_bounds(task, result.x, reported)
+    if on.any():
+        out.append(f"{int(on.sum())} gene(s) of the best genome sit on their range bounds ({_listed(p.names, on)}): the search "
+                   "was held there, and the true errors may be larger than the ranges allow (widen them: "
+                   "problem.search_scale, or problem.ranges=fixed with axis_error and body_error)")  # fmt: skip
+    if beyond.any():
+        out.append(f"{int(beyond.sum())} gene(s) of the (unbounded) optimiser's genome lie beyond the gene ranges "
+                   f"({_listed(p.names, beyond)}): a bounded search (GA, CMA-ES) could not reach this model; widen the "
+                   "ranges if it ends worse")  # fmt: skip
     return out
 
 
@@ -87,22 +136,28 @@ def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wa
     from hydra.core.hydra_config import HydraConfig
 
     p, judge = task.problem, task.judge
-    x = error_model.canonical(p.layout, p.nominal, result.x) if p.cost is Cost.nonlinear else result.x
     zero = np.zeros(p.layout.size)
     nominal_cost = float(p.costs(zero)[0])
+    returned = "nominal" if task.nominal_if_worse and worse_than_nominal(result, nominal_cost) else "optimiser"
+    found = result.x if result.x is not None else zero
+    found = error_model.canonical(p.layout, p.nominal, found) if p.cost is Cost.nonlinear else found
+    x, final_cost = (zero, nominal_cost) if returned == "nominal" else (found, result.cost)
     before, after = judge.validation_errors(zero), judge.validation_errors(x)
     val_rms = {"nominal": float(before[0][0]) * 1e3, "calibrated": float(after[0][0]) * 1e3}
     initial = result.initial_costs[np.isfinite(result.initial_costs)]
     initial_best = float(initial.min()) if initial.size else float("nan")
+    robot = task.robot
     summary = {
         "instance": task.name,
         "algorithm": resolved["algorithm"]["_target_"].rsplit(".", 1)[-1].lower(),
         "choices": dict(HydraConfig.get().runtime.choices) if HydraConfig.initialized() else {},
         "seed": int(cfg.seed),
-        "final_cost": result.cost,
+        "final_cost": final_cost,
+        "optimiser_cost": result.cost,
+        "returned": returned,
         "initial_cost": initial_best,
         "nominal_cost": nominal_cost,
-        "final_over_initial": result.cost / initial_best,
+        "final_over_initial": final_cost / initial_best,
         "nevals": result.nevals,
         "stop_reason": result.stop_reason,
         "wall_s": wall_s,
@@ -110,9 +165,10 @@ def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wa
         "validation_max_mm": {"nominal": float(before[1][0]) * 1e3, "calibrated": float(after[1][0]) * 1e3},
         "param_err": {"nominal": float(judge.param_error(zero)[0]), "calibrated": float(judge.param_error(x)[0])},
         "identifiability": diagnostics,
-        "robot": {"name": task.robot.name, "joints": task.robot.n, "joint_types": task.robot.joint_types},
+        "robot": {"name": robot.name, "joints": robot.n, "joint_types": robot.joint_types},
+        "robot_model": robot.to_dict(),  # the arm as given (ZRP, before any registration)
         "problem": task.info,
-        "warnings": warnings(task, result, nominal_cost, val_rms),
+        "warnings": warnings(task, result, nominal_cost, val_rms, returned, found),
         "best_genome": dict(zip(p.names, x.tolist())),
         **task.report(x),
         "config": resolved,
@@ -130,7 +186,32 @@ def write(out: Path, task: Task, result: Result, summary: dict, x: np.ndarray) -
     records.write_csv(out / "best_params.csv", records.params_by_joint(p.layout, x, truth))
     records.write_csv(out / "initial_population.csv", records.population_table(p.names, result.initial_x, result.initial_costs))
     task.write(out, x)
+    summary["calibrated_robot"] = write_robot(out, task, x)
     records.write_json(out / "summary.json", summary)
+
+
+def write_robot(out: Path, task: Task, x: np.ndarray, stem: str = "calibrated_robot") -> dict[str, Any]:
+    """The calibrated arm of genome ``x`` as robot files (module docstring); what
+    ``summary.json`` says about them: the files, the DH table's mismatch, base and tools."""
+    arm, base, tools = task.export(x)
+    first = next(iter(tools.values()), None)
+    paths = robot_files.write_robot_files(arm, out, stem, base=base, tool=first)
+    if len(tools) > 1:
+        from zrp_ga.robot_files import _frame_entry  # the frames file's own entry format
+
+        entries = {name: _frame_entry(T) for name, T in tools.items()}
+        with open(paths["frames"], "a") as f:
+            f.write("# tools: every tool point's frame in the hand frame (tool: the first).\n")
+            f.write(yaml.safe_dump({"tools": entries}, sort_keys=False, default_flow_style=None))
+    paths["mdh"] = out / f"{stem}_mdh.yaml"
+    mdh, mdh_mismatch = robot_files.to_dh(arm, "mdh")
+    header = f"Modified DH table of {arm.name} (zrp_ga.robot_files.to_dh): {mdh_mismatch}"
+    robot_files.dh_to_yaml(mdh, paths["mdh"], comment="\n".join([header, *mdh_mismatch.notes]))
+    mismatch = {"dh": robot_files.to_dh(arm)[1], "mdh": mdh_mismatch}
+    return {"files": {k: v.name for k, v in paths.items()},
+            **{f"{k}_mismatch": {"position_mm": m.position_m * 1e3, "orientation_mrad": m.orientation_rad * 1e3,
+                                 "samples": m.samples, "notes": list(m.notes)} for k, m in mismatch.items()},
+            "base": None if base is None else base.tolist(), "tools": {k: T.tolist() for k, T in tools.items()}}  # fmt: skip
 
 
 def console(out: Path, hc, multirun: bool) -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,13 +28,17 @@ Array = NDArray[np.float64]
 @dataclasses.dataclass
 class Task:
     """A calibration problem instance, named, with its judge; ``robot`` is the arm as given
-    (before any registration), ``info`` goes into ``summary.json``."""
+    (before any registration), ``info`` goes into ``summary.json``, ``warnings`` (found while
+    building it) into its warnings. ``nominal_if_worse``: a result that fits the calibration
+    data worse than the nominal arm is replaced by the nominal arm (:mod:`zrp_ga.summary`)."""
 
     name: str
     problem: CalibrationProblem
     judge: Judge
     robot: ZRPRobot
     info: dict[str, Any] = dataclasses.field(default_factory=dict)
+    warnings: list[str] = dataclasses.field(default_factory=list)
+    nominal_if_worse: ClassVar[bool] = False
 
     @property
     def truth(self) -> Array | None:
@@ -43,6 +47,11 @@ class Task:
     def calibrated_robot(self, x: Array) -> ZRPRobot:
         p = self.problem
         return p.layout.robot(p.nominal, x, name=f"{p.nominal.name} calibrated")
+
+    def export(self, x: Array) -> tuple[ZRPRobot, Array | None, dict[str, Array]]:
+        """The calibrated arm as robot files carry it: the arm, the pose (4, 4) of its base frame
+        in the outer frame (None: the same), and tool frames (4, 4) in its hand frame by name."""
+        return self.calibrated_robot(x), None, {}
 
     def report(self, x: Array) -> dict[str, Any]:
         """Entries of this kind for ``summary.json`` about the calibrated genome ``x``."""

@@ -1,30 +1,55 @@
-"""Measured problems (``problem=measured``, ``problem=ur10_ipa``): poses read from files in an
-instrument's frame. The nominal arm is registered to the calibration poses (base transform and
-tool offset, :mod:`zrp_ga.registration`), then its parameters, the base point included (and the
-hand orientation with measured orientations), are identified in the instrument's frame."""
+"""Measured problems (``problem=measured``, ``problem=ur10_ipa``): points read from files in an
+instrument's frame, for any serial arm.
+
+:func:`build` reads the files (units found from the data unless stated, every bad input one
+line naming file, line and column) and refuses data too few to identify the arm's parameters.
+:func:`from_measurements` registers the nominal arm to the calibration points (base transform
+and one offset per tool point, :mod:`zrp_ga.registration`) and identifies its parameters, the
+base point included (and the hand orientation with measured orientations), in the instrument's
+frame; several tool points share one arm, each with its own last body vector.
+
+Gene ranges (``problem.ranges``): ``data`` (default) derives them from the registered nominal
+arm's largest residual ``e`` (m): ``+-e`` on every body vector, the base point and the tools,
+``+-e / L_i`` (rad) on axis i, with ``L_i`` the median lever of axis i over the calibration poses
+(how far the end point moves per radian of tilt: the spectral norm of the position Jacobian's
+block on the axis' tangent plane, at least 5 cm), and the largest orientation residual
+on the hand, all times ``search_scale`` (axes at most 0.5 rad): wide enough for errors that
+explain what the registration leaves, whatever the arm. ``fixed``: ``axis_error`` and
+``body_error`` times ``search_scale``.
+
+After the run the calibrated arm leaves as robot files (:meth:`MeasuredTask.export`): the arm in
+its own base frame, ending at the hand (the registered first tool offset taken off), the base
+transform (robot base in the instrument's frame) and each tool's transform in the hand frame.
+"""
 
 from __future__ import annotations
 
 import dataclasses
 import importlib.resources
 import logging
+import math
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from zrp_ga import measurements, metrics, records
-from zrp_ga.config import Format, MeasuredConf, section
+from zrp_ga import error_model, measurements, metrics, records
+from zrp_ga.config import Format, MeasuredConf, Ranges, section
 from zrp_ga.layout import Layout
 from zrp_ga.measurements import Measurements
 from zrp_ga.metrics import Judge
-from zrp_ga.problem import CalibrationProblem
+from zrp_ga.problem import CalibrationProblem, model_rank
 from zrp_ga.problems import Task, half_ranges
 from zrp_ga.registration import Registration, register
 from zrp_ga.robot import ZRPRobot
 
 log = logging.getLogger(__name__)
 POSE_ERRORS = "pose_errors.csv"
+INSTRUMENT_MODEL = "calibrated_in_instrument.yaml"
+MIN_LEVER_M = 0.05  # axis levers below this count as this much for the gene ranges
+MAX_AXIS_RAD = 0.5  # largest axis gene range
+GENERIC_TOOL_M = np.array([0.05, 0.03, 0.02])  # a tool offset off every axis, for counting what can be identified
+FAR_REGISTRATION = 0.02  # a registered nominal arm off by more than this share of its reach is suspect
 
 
 def data_path(name: str) -> Path:
@@ -37,16 +62,22 @@ def data_path(name: str) -> Path:
 @dataclasses.dataclass
 class MeasuredTask(Task):
     """A task on measured data: it also writes the registration, the calibrated arm in the
-    instrument's frame and the position error of every pose before and after."""
+    instrument's frame and the position error of every pose before and after. A result worse
+    than the nominal arm on the calibration data is replaced by the nominal arm."""
 
     registration: Registration | None = None
     sets: dict[str, Measurements] = dataclasses.field(default_factory=dict)
+    nominal_if_worse: ClassVar[bool] = True
 
     def errors(self, x: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Position errors (m) of every pose of each set, nominal and calibrated."""
-        p = self.problem
-        return {k: (metrics.position_errors(p.layout, p.nominal, np.zeros_like(x), m),
-                    metrics.position_errors(p.layout, p.nominal, x, m)) for k, m in self.sets.items()}  # fmt: skip
+        """Position errors (m) of every pose of each set, nominal and calibrated (the validation
+        set registered as the judge registers it)."""
+        p, judge = self.problem, self.judge
+        out = {}
+        for k, m in self.sets.items():
+            how = judge.registration if k == "validation" else "none"
+            out[k] = tuple(metrics.position_errors(p.layout, p.nominal, g, m, how) for g in (np.zeros_like(x), x))
+        return out
 
     def report(self, x: np.ndarray) -> dict[str, Any]:
         mm = lambda e: {k: v * 1e3 if k != "poses" else v for k, v in metrics.summary(e).items()}  # noqa: E731
@@ -55,23 +86,62 @@ class MeasuredTask(Task):
             "position_error_mm": {k: {"nominal": mm(b), "calibrated": mm(a)} for k, (b, a) in self.errors(x).items()},
         }
 
+    def export(self, x: np.ndarray) -> tuple[ZRPRobot, np.ndarray, dict[str, np.ndarray]]:
+        """The calibrated arm in its base frame ending at the hand, the base transform (4, 4)
+        (robot base in the instrument's frame, the registration's) and every tool's transform
+        (4, 4) in the hand frame, so that ``base @ arm(q) @ tool_k`` is tool k's calibrated pose
+        in the instrument's frame (module docstring)."""
+        p, reg = self.problem, self.registration
+        Rt = reg.R.T
+        in_base = self.calibrated_robot(x).transformed(Rt, -Rt @ reg.t)
+        turn = np.eye(3) if reg.tool_rotation is None else reg.tool_rotation
+        arm = in_base.replace(R_h0=in_base.R_h0 @ turn.T).with_tool(-reg.tool)
+        ends = p.layout.unpack(p.nominal, x).ends[:, :, 0]  # every tool's last body vector, instrument frame
+        tools = {}
+        for name, end in zip(self.tool_names, ends):
+            T = np.eye(4)
+            T[:3, :3], T[:3, 3] = turn, arm.R_h0.T @ (Rt @ end - arm.b0[-1])
+            tools[name] = T
+        return arm, reg.base(), tools
+
+    @property
+    def tool_names(self) -> tuple[str, ...]:
+        """Names of the layout's tools: the calibration's, then the known ones (as the
+        validation set's tool indices count them)."""
+        return tuple(self.info["tools"]) + tuple(self.info.get("known_tools", {}))
+
     def write(self, out: Path, x: np.ndarray) -> None:
         records.write_json(out / "registration.json", self.registration.to_dict())
-        self.calibrated_robot(x).to_yaml(out / "calibrated_robot.yaml")
-        rows = [{"set": k, "line": int(line), "nominal_mm": b * 1e3, "calibrated_mm": a * 1e3}
+        self.calibrated_robot(x).to_yaml(out / INSTRUMENT_MODEL)
+        names = self.tool_names
+        rows = [{"set": k, "line": int(line), **({"tool": names[t]} if len(names) > 1 else {}),
+                 "nominal_mm": b * 1e3, "calibrated_mm": a * 1e3}
                 for k, (before, after) in self.errors(x).items()
-                for line, b, a in zip(self.sets[k].lines, before, after)]  # fmt: skip
+                for line, t, b, a in zip(self.sets[k].lines, self.sets[k].tools, before, after)]  # fmt: skip
         records.write_csv(out / POSE_ERRORS, rows)
+
+
+def measured_format(robot: ZRPRobot, c: MeasuredConf) -> measurements.Format:
+    """The file format of ``c``: the zrp CSV format in its units, or the UR10 files (whose
+    orientation convention a stated one replaces)."""
+    if c.format is Format.ur10_ipa:
+        fmt = measurements.UR10_IPA
+        return fmt if c.orientation_convention is None else dataclasses.replace(fmt, orientation_convention=c.orientation_convention)
+    return measurements.zrp_format(robot.n, c.length_unit, c.angle_unit, c.orientation_convention)
 
 
 def build(robot: ZRPRobot, seed: int, **settings) -> MeasuredTask:
     """Read and split the measurement files of ``settings`` (``zrp_ga.config.MeasuredConf``'s
-    keys), then :func:`from_measurements`."""
+    keys), then :func:`from_measurements`. The validation file is read in the units the
+    calibration file was found in."""
     c: MeasuredConf = section(MeasuredConf, settings, "problem")
-    fmt = measurements.UR10_IPA if c.format is Format.ur10_ipa else measurements.zrp_format(robot.n, c.length_unit, c.angle_unit)
-    calib = measurements.read(data_path(c.calibration_file), fmt, robot.n, c.drop_bad_rows)
+    fmt = measured_format(robot, c)
+    calib = measurements.read(data_path(c.calibration_file), fmt, robot, c.drop_bad_rows)
     if c.validation_file:
-        val = measurements.read(data_path(c.validation_file), fmt, robot.n, c.drop_bad_rows)
+        length, joint = calib.units
+        same = dataclasses.replace(fmt, length_unit=length, joint_unit=joint,
+                                   angle_unit=joint if fmt.angle_unit == measurements.AUTO else fmt.angle_unit)  # fmt: skip
+        val = measurements.read(data_path(c.validation_file), same, robot, c.drop_bad_rows)
     elif c.validation_fraction:
         calib, val = measurements.split(calib, c.validation_fraction, np.random.default_rng([seed, 2]))
     else:
@@ -80,23 +150,100 @@ def build(robot: ZRPRobot, seed: int, **settings) -> MeasuredTask:
 
 
 def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | None, c: MeasuredConf) -> MeasuredTask:
-    """Register ``robot`` to the calibration poses, then the calibration problem in the
-    instrument's frame; ``val`` (or None) validates."""
-    if c.use_orientation and calib.R is None:
-        raise ValueError(f"problem.use_orientation: {calib.source} has no orientation columns")
-    if c.use_weights and calib.std is None:
-        raise ValueError(f"problem.use_weights: {calib.source} has no standard-deviation columns")
-    reg = register(robot, calib.q, calib.p, rotations=calib.R if c.use_orientation else None)
-    log.info("registered %s to %s: %.3f mm RMS, tool offset %s mm", robot.name, calib.source, reg.rms * 1e3,
-             np.round(reg.tool * 1e3, 2))  # fmt: skip
+    """Register ``robot`` to the calibration points, then the calibration problem in the
+    instrument's frame; ``val`` (or None) validates (module docstring)."""
+    _check_asked(calib, c)
+    names = calib.tool_names or ("tool",)
+    known = {str(k): np.asarray(v, dtype=float) * measurements.LENGTH[calib.units[0]] for k, v in (c.known_tools or {}).items()}
+    calib = calib.with_tool_names(names)
+    if val is not None:
+        val = val.with_tool_names(names + tuple(known))
+        if c.validation_registration.value == "rigid" and val.M < 3:
+            raise ValueError(f"problem.validation_registration: rigid needs at least 3 validation points, {val.source} has {val.M}")
+    _check_enough(robot, len(names), calib, bool(c.use_orientation))
+    reg = register(robot, calib.q, calib.p, rotations=calib.R if c.use_orientation else None, tools=calib.tool,
+                   tool_names=names)  # fmt: skip
+    warnings = _registration_warnings(robot, reg, calib)
     nominal = reg.apply(robot)
-    layout = Layout(robot.n, base=True, hand=bool(c.use_orientation))
-    half = half_ranges(c, layout)
+    layout = Layout(robot.n, base=True, hand=bool(c.use_orientation), tools=tuple(map(tuple, reg.tools[1:] - reg.tool)),
+                    known_tools=tuple(tuple(v - reg.tool) for v in known.values()))  # fmt: skip
+    half = gene_half_widths(layout, nominal, calib.q, reg, c) if c.ranges is Ranges.data else half_ranges(c, layout)
     data = calib.for_calibration(c.use_orientation, c.use_weights)
     problem = CalibrationProblem(nominal, data, layout, -half, half, c.cost, c.norm, c.orientation_weight, c.kernel)
     validation = val.for_calibration() if val is not None else None
     name = c.name or f"{robot.name}-{Path(calib.source).stem}"
-    files = {"calibration": calib.source, "validation": val.source if val is not None else None}
+    info = {"kind": "measured", "files": {"calibration": calib.source, "validation": val.source if val is not None else None},
+            "units": {"length": calib.units[0], "joint_angle": calib.units[1]}, "tools": list(names),
+            **({"known_tools": {k: v.tolist() for k, v in known.items()}} if known else {}),
+            "gene_half_widths": dict(zip(layout.names, half.tolist()))}  # fmt: skip
     sets = {"calibration": calib, **({"validation": val} if val is not None else {})}
-    return MeasuredTask(name, problem, Judge(layout, nominal, validation), robot, {"kind": "measured", "files": files},
-                        registration=reg, sets=sets)  # fmt: skip
+    judge = Judge(layout, nominal, validation, registration=c.validation_registration.value)
+    for w in warnings:
+        log.warning(w)
+    return MeasuredTask(name, problem, judge, robot, info, warnings, registration=reg, sets=sets)
+
+
+def _check_asked(calib: Measurements, c: MeasuredConf) -> None:
+    """What the settings ask of the data: orientations (with a stated convention), standard
+    deviations, one tool with orientations."""
+    if c.use_orientation and calib.R is None:
+        if c.orientation_convention is None and c.format is Format.zrp:
+            raise ValueError(f"problem.orientation_convention: state the convention of {calib.source}'s rx, ry, rz "
+                             "(an Euler sequence such as XYZ intrinsic or xyz extrinsic, or rotvec as UR controllers report)")  # fmt: skip
+        raise ValueError(f"problem.use_orientation: {calib.source} has no orientation columns")
+    if c.use_weights and calib.std is None:
+        raise ValueError(f"problem.use_weights: {calib.source} has no standard-deviation columns")
+    if c.use_orientation and len(calib.tool_names) > 1:
+        raise ValueError(f"problem.use_orientation: {calib.source} measures {len(calib.tool_names)} tool points; "
+                         "orientations are supported with one tool")  # fmt: skip
+
+
+def _check_enough(robot: ZRPRobot, n_tools: int, data: Measurements, orientation: bool) -> None:
+    """Enough distinct measured points for the parameter combinations the model can identify
+    (the unit-length rows give n of them); ValueError saying how many are needed. Before the
+    registration the tools' offsets are not known: the rank is that of tools off every axis
+    (multiples of ``GENERIC_TOOL_M``), as real tools and reflectors are."""
+    tools = tuple(tuple(GENERIC_TOOL_M * (k + 1)) for k in range(1, n_tools))
+    layout = Layout(robot.n, base=True, hand=orientation, tools=tools)
+    rank = model_rank(robot.with_tool(GENERIC_TOOL_M), layout, not orientation)
+    rows = 6 if orientation else 3
+    need = math.ceil((rank - robot.n) / rows)
+    poses = len(np.unique(data.q, axis=0))
+    points = len(np.unique(np.column_stack([data.q, data.tools]), axis=0))
+    why = (f"a calibration of {robot.name} needs at least {need} measured points ({rows} rows each for the "
+           f"{rank - robot.n} parameter combinations it can identify beyond the axes' unit lengths), and several "
+           "times more to average out the noise")  # fmt: skip
+    if poses == 1:
+        raise ValueError(f"{data.source}: a single pose; {why}")
+    if points < need:
+        raise ValueError(f"{data.source}: {points} distinct measured points in {poses} poses; {why}")
+
+
+def _registration_warnings(robot: ZRPRobot, reg: Registration, calib: Measurements) -> list[str]:
+    """A nominal arm that the registration leaves far from the points (more than 2% of its
+    reach): wrong units, joint order, zero positions or directions, or the wrong robot file."""
+    log.info("registered %s to %s: %.3f mm RMS, tool offsets %s mm", robot.name, calib.source, reg.rms * 1e3,
+             np.round(reg.tools * 1e3, 2).tolist())  # fmt: skip
+    reach = measurements.reach_m(robot)
+    if reg.rms <= FAR_REGISTRATION * reach:
+        return []
+    worst = int(np.argmax(reg.errors))
+    return [f"the registered nominal {robot.name} is {reg.rms * 1e3:.4g} mm RMS off the calibration points (more than "
+            f"{FAR_REGISTRATION:.0%} of its {reach:.3g} m reach; worst: line {calib.lines[worst]}, {reg.errors[worst] * 1e3:.4g} mm): "
+            f"check the robot file, the joint order, zero positions and directions, and the units (read as "
+            f"{calib.units[0]} and {calib.units[1]})"]  # fmt: skip
+
+
+def gene_half_widths(layout: Layout, nominal: ZRPRobot, q: np.ndarray, reg: Registration, c: MeasuredConf) -> np.ndarray:
+    """Half widths (K,) of the gene ranges from the registered arm's residuals (module
+    docstring): body vectors, base point and tools ``e``, axis i ``e / L_i``, hand the largest
+    orientation residual; times ``search_scale``."""
+    e = max(reg.max, 1e-6)
+    J = error_model.pose_jacobians(nominal, q)[:, 3:, : 3 * layout.n]  # position rows, axis columns
+    tilts = [np.eye(3) - np.outer(u, u) for u in nominal.u0]  # an axis only turns: its tangent directions
+    lever = np.array([np.median(np.linalg.norm(J[:, :, 3 * i : 3 * i + 3] @ tilts[i], ord=2, axis=(1, 2))) for i in range(layout.n)])
+    half = np.full(layout.size, e)
+    half[layout.blocks["u0"]] = np.repeat(np.minimum(e / np.maximum(lever, MIN_LEVER_M), MAX_AXIS_RAD / c.search_scale), 3)
+    if layout.hand:
+        half[layout.blocks["hand"]] = min(max(reg.max_angle or 0.0, 1e-6), MAX_AXIS_RAD / c.search_scale)
+    return half * c.search_scale
