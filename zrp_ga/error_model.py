@@ -74,10 +74,15 @@ def pose_jacobians(robot: ZRPRobot, q: ArrayLike, base: bool = False, hand: bool
     return jacobian_arrays(robot.u0, robot.b0, robot.prismatic, q, base, hand)
 
 
-def jacobian_arrays(u0: Array, b0: Array, prism: NDArray[np.bool_], q: Array, base: bool = False, hand: bool = False) -> Array:
+def jacobian_arrays(
+    u0: Array, b0: Array, prism: NDArray[np.bool_], q: Array, base: bool = False, hand: bool = False, compiled: bool = True
+) -> Array:
     """:func:`pose_jacobians` on raw arrays, u0 (n, 3) not necessarily unit, q (M, n); no checks.
     The compiled kernel :func:`_jacobian_kernel` computes the 6n columns pose by pose;
-    :func:`jacobian_reference` is the same in readable numpy (the tests hold them together)."""
+    :func:`jacobian_reference` (``compiled=False``) is the same in readable numpy, equal to
+    round-off (the tests hold them together)."""
+    if not compiled:
+        return jacobian_reference(u0, b0, prism, q, base, hand)
     q = np.ascontiguousarray(q, dtype=float)
     M, n = q.shape
     J = np.zeros((M, 6, 6 * n + 3 * base + 3 * hand))

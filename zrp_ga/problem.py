@@ -157,7 +157,7 @@ class CalibrationProblem:
         raw = self.nominal.u0 + x[blocks["u0"]].reshape(n, 3)
         length = np.linalg.norm(raw, axis=1)
         unit = raw / length[:, None]
-        J = self._tool_jacobians(unit, m)
+        J = self._tool_jacobians(unit, m, compiled=exact)
         if data.position_only:
             J = J[:, 3:]
         elif exact:
@@ -176,18 +176,21 @@ class CalibrationProblem:
             U[i, 3 * i : 3 * i + 3] = raw[i]
         return np.vstack([J.reshape(-1, J.shape[-1]), U]) * self._row_weights[:, None]
 
-    def _tool_jacobians(self, unit: Array, m) -> Array:
+    def _tool_jacobians(self, unit: Array, m, compiled: bool) -> Array:
         """Pose Jacobians (M, 6, K) at the unit axes ``unit`` (n, 3) and one genome's model
-        arrays: each tool's poses with its last body vector, whose columns are that tool's genes."""
+        arrays: each tool's poses with its last body vector, whose columns are that tool's genes.
+        ``compiled``: the compiled Jacobian (the pseudo-inverse step and LM call it often), else
+        the numpy reference (the nominal Jacobian, computed once: bit for bit zrp_ga 0.1's)."""
         data, layout, n = self.data, self.layout, self.nominal.n
         if len(self._groups) == 1 and self._groups[0][0] == 0 and not layout.tools:
-            return error_model.jacobian_arrays(unit, m.B[:, :, 0], self.nominal.prismatic, data.q, layout.base, layout.hand)
+            return error_model.jacobian_arrays(unit, m.B[:, :, 0], self.nominal.prismatic, data.q, layout.base, layout.hand,
+                                               compiled)  # fmt: skip
         J = np.zeros((data.M, 6, layout.size))
         core = 6 * n + 3 * layout.base + 3 * layout.hand
         end = slice(6 * n - 3, 6 * n)  # db0_{n+1}: tool 1's last body vector
         for k, rows, *_ in self._groups:
             Jk = error_model.jacobian_arrays(unit, m.for_tool(k).B[:, :, 0], self.nominal.prismatic, data.q[rows],
-                                             layout.base, layout.hand)  # fmt: skip
+                                             layout.base, layout.hand, compiled)  # fmt: skip
             if k:
                 J[rows, :, layout.blocks[f"tool{k + 1}"]] = Jk[:, :, end]
                 Jk[:, :, end] = 0.0
