@@ -12,9 +12,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from zrp_ga import robots
+from zrp_ga import kinematics, robots
 
 GOOD_ARM = robots.path("ur10").read_text()
 DH_ROW = "{name: j1, type: R, a: 0, alpha: 90, d: 0.1273, theta: 0}"
@@ -35,6 +36,23 @@ def _arm(**changes: str) -> str:
         assert old in text, old
         text = text.replace(old, new, 1)
     return text
+
+
+def _points(n: int = 40, seed: int = 0) -> list[str]:
+    """Rows ``q1..q6 (rad), x, y, z (mm)`` of a UR10 a tracker sees 3 m away."""
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(-2.5, 2.5, size=(n, 6))
+    _, p = kinematics.forward(robots.get("ur10"), q)
+    return [",".join(f"{v:.6f}" for v in (*qi, *(pi + [3.0, 0.5, 0.2]) * 1e3)) for qi, pi in zip(q, p)]
+
+
+HEAD = "q1,q2,q3,q4,q5,q6,x,y,z"
+ROWS = _points()
+MEASURED = ("problem=measured", "robot=ur10", "problem.calibration_file={dir}/cal.csv")
+
+
+def _csv(rows: list[str]) -> tuple[tuple[str, str], ...]:
+    return (("cal.csv", "\n".join([HEAD, *rows]) + "\n"),)
 
 
 CASES = [
@@ -70,6 +88,19 @@ CASES = [
          "population.max_evals=10"), "population.max_evals: must be more than the initial population"),
     Case("unknown parameter", "a parameter the operator does not take", ("crossover=sbx", "+crossover.op.etaa=3"),
          "crossover.op: unknown parameter 'etaa'"),
+    # --- measurement files ----------------------------------------------------------------------
+    Case("missing path", "a measurement file that does not exist", MEASURED, "cal.csv"),
+    Case("wrong kind of path", "a directory given as the measurement file",
+         ("problem=measured", "robot=ur10", "problem.calibration_file={dir}"), "directory"),
+    Case("non-finite number", "NaN in a measured position", MEASURED, "line 4, column 'y': 'nan' is not a finite number",
+         files=_csv(ROWS[:2] + [ROWS[2].rsplit(",", 2)[0] + ",nan," + ROWS[2].rsplit(",", 1)[1]] + ROWS[3:])),
+    Case("absurd number", "a measured coordinate of 1e300 mm", MEASURED, "line 3, column 'x'",
+         files=_csv(ROWS[:1] + [",".join(ROWS[1].split(",")[:6] + ["1e300"] + ROWS[1].split(",")[7:])] + ROWS[2:])),
+    Case("degenerate data", "rows repeated", MEASURED, "repeat", files=_csv(ROWS + ROWS[:5])),
+    Case("too little data", "fewer poses than the parameters need", MEASURED, "need", files=_csv(ROWS[:3])),
+    Case("too little data", "a single pose", MEASURED, "pose", files=_csv(ROWS[:1])),
+    Case("missing column", "a file without the z column", MEASURED, "'z'",
+         files=(("cal.csv", "\n".join([HEAD[:-2], *(r.rsplit(",", 1)[0] for r in ROWS)]) + "\n"),)),
     # --- checkpoints ----------------------------------------------------------------------------
     Case("corrupted file", "a truncated checkpoint", ("resume={dir}",), "not a readable checkpoint",
          files=(("checkpoint.npz", "PK\x03\x04 truncated"),)),
