@@ -28,6 +28,7 @@ from zrp_ga.config import ConfigError
 
 log = logging.getLogger("zrp_ga")
 config.register()
+import hydra_plugins.zrp_ga_launcher.launcher  # noqa: E402,F401 (hydra/launcher=zrp_ga and =local; see _register_launcher)
 RUN_FILES = ("convergence.csv", "summary.json")
 
 
@@ -207,6 +208,28 @@ def execute(p: Prepared, out: Path | None, progress: bool) -> tuple[Any, dict]:
     return result, written
 
 
+def warm_up(cfg: DictConfig) -> None:
+    """Load what the runs of a sweep need (modules, compiled code, the base config's problem
+    instance) by building the sweep's base config and running one generation of it, writing
+    nothing. zrp_ga's launcher calls it in each worker while Hydra still checks the sweep's jobs;
+    whatever fails here fails again, with its message, in the job itself."""
+    import numpy as np
+    from threadpoolctl import threadpool_limits
+
+    from zrp_ga import callbacks, checkpoint, records, summary  # noqa: F401 (imported for the runs)
+
+    try:
+        p = _build(_task_config(cfg), None, None, reuse=True)
+        with threadpool_limits(limits=1, user_api="blas"):
+            p.algorithm.setup(p.task.problem, np.random.default_rng(0))
+            p.algorithm.initialize()
+            if p.algorithm.has_next():
+                p.algorithm.step()
+            p.task.judge(p.algorithm.current()[0])
+    except Exception as exc:  # noqa: BLE001 (a warm-up only)
+        log.debug("warm-up: %s", exc)
+
+
 @hydra.main(version_base="1.3", config_path="pkg://zrp_ga.conf", config_name="config")
 def main(cfg: DictConfig) -> float:
     from hydra.core.hydra_config import HydraConfig
@@ -288,13 +311,17 @@ def _same_run(cfg: DictConfig, stored: dict | None, out: Path) -> None:
                           "run this sweep into another hydra.sweep.dir")  # fmt: skip
 
 
-def _difference(a: Any, b: Any, key: str = "") -> str:
-    """The first dotted key at which the nested dicts ``a`` and ``b`` differ."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        for k in [*a, *(k for k in b if k not in a)]:
-            if a.get(k) != b.get(k):
-                return _difference(a.get(k), b.get(k), f"{key}.{k}" if key else k)
-    return key or "the config"
+def _difference(a: Any, b: Any) -> str:
+    """A dotted key at which the nested dicts ``a`` and ``b`` differ, the shortest (the same
+    setting can appear deeper through an interpolation: ``algorithm.population``)."""
+
+    def leaves(a: Any, b: Any, key: str) -> list[str]:
+        if isinstance(a, dict) and isinstance(b, dict):
+            return [k for name in [*a, *(n for n in b if n not in a)] if a.get(name) != b.get(name)
+                    for k in leaves(a.get(name), b.get(name), f"{key}.{name}" if key else name)]  # fmt: skip
+        return [key or "the config"]
+
+    return min(leaves(a, b, ""), key=lambda k: k.count("."))
 
 
 _started: list[Path] = []  # where the run writes, for the interrupt message
@@ -314,6 +341,7 @@ def cli() -> None:
 
     full = os.environ.get("HYDRA_FULL_ERROR") == "1"
     os.environ["HYDRA_FULL_ERROR"] = "1"
+    _register_launcher()
     try:
         main()
     except (HydraException, OmegaConfBaseException, ValueError, OSError, Refused) as exc:
@@ -334,6 +362,17 @@ def cli() -> None:
             print(f"\nzrp-ga: interrupted; the checkpoint and convergence.csv in {where} are complete up to the last "
                   f"finished generation: continue with  zrp-ga resume={where}", file=sys.stderr)  # fmt: skip
         sys.exit(130)
+
+
+def _register_launcher() -> None:
+    """zrp_ga's launcher, registered by hand as well: Hydra finds plugins by listing the modules
+    of the ``hydra_plugins`` namespace package, which an editable install (``pip install -e``)
+    does not let it list."""
+    from hydra.core.plugins import Plugins
+
+    from hydra_plugins.zrp_ga_launcher.launcher import ZrpGaLauncher
+
+    Plugins.instance().register(ZrpGaLauncher)
 
 
 def one_line(exc: BaseException) -> str:
