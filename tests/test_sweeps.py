@@ -89,6 +89,35 @@ def test_options_that_write_outside_their_package_are_composed_by_hydra(hydra_lo
     assert _compare_with_hydra(hydra_loader, [], jobs) == 2
 
 
+@pytest.mark.parametrize("overrides", [["seed=3"], ["problem=multipose", "crossover=sbx", "hydra.job.chdir=false"],
+                                       ["experiment=operator_grid"], ["-m"], ["seed=1,2"]], ids=str)
+def test_a_run_composes_its_config_once_to_hydras_own(hydra_loader, overrides):
+    """As ``hydra.main`` does: the mode first, then the config to run (mode MULTIRUN: an
+    experiment that sets it, or ``-m``), once with the first composition kept, once by Hydra."""
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.types import RunMode
+
+    from hydra_plugins.zrp_ga_launcher._compose import compose_once
+
+    hydra, multirun = GlobalHydra.instance().hydra, overrides == ["-m"] or "seed=1,2" in overrides
+    overrides = [o for o in overrides if o != "-m"]
+    calls = []
+    load = hydra.config_loader.load_configuration
+    hydra.config_loader.load_configuration = lambda *a, **k: calls.append(1) or load(*a, **k)
+    try:
+        with compose_once():
+            mode = hydra.get_mode("config", list(overrides))
+            mode = mode or (RunMode.MULTIRUN if multirun else RunMode.RUN)
+            lines = overrides + ([f"hydra.mode={mode.name}"] if "experiment=operator_grid" not in overrides else [])
+            ours = hydra.compose_config("config", lines, run_mode=mode, with_log_configuration=True)
+    finally:
+        hydra.config_loader.load_configuration = load
+    assert len(calls) == 1
+    theirs = hydra.compose_config("config", lines, run_mode=mode)
+    assert OmegaConf.to_yaml(ours) == OmegaConf.to_yaml(theirs)
+    assert _nodes(ours) == _nodes(theirs)
+
+
 @pytest.mark.slow
 def test_cached_compositions_of_the_whole_operator_grid_equal_hydras_own(hydra_loader):
     grid = itertools.product(["one_point", "two_point", "blend", "sbx"], ["gaussian", "polynomial", "uniform_reset"],

@@ -342,8 +342,11 @@ def cli() -> None:
     full = os.environ.get("HYDRA_FULL_ERROR") == "1"
     os.environ["HYDRA_FULL_ERROR"] = "1"
     _register_launcher()
+    from hydra_plugins.zrp_ga_launcher._compose import compose_once
+
     try:
-        main()
+        with compose_once():
+            main()
     except (HydraException, OmegaConfBaseException, ValueError, OSError, Refused) as exc:
         if full:
             raise

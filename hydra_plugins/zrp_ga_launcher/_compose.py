@@ -28,9 +28,12 @@ why ``hydra-core`` is pinned below 1.4; ``hydra.launcher.cached_composition=fals
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
+import logging
 import pickle
+from collections.abc import Iterator
 from typing import Any
 
 from hydra._internal.config_loader_impl import ConfigLoaderImpl, get_overrides_dirname
@@ -224,3 +227,70 @@ def _put(cfg: DictConfig, package: str, node: Any) -> None:
     new = copy.deepcopy(node)
     new._set_parent(target)
     target.__dict__["_content"][leaf] = new
+
+
+@contextlib.contextmanager
+def compose_once() -> Iterator[None]:
+    """While active, a Hydra app composes its config once instead of twice.
+
+    ``hydra.main`` composes the config to read ``hydra.mode`` (``Hydra.get_mode``, in multirun
+    mode, where sweep overrides are not checked and missing options are skipped), then composes
+    it again to run (0.2 - 0.3 s each here). The first composition is kept and given to the
+    second when the second could not differ: no sweep overrides (for a single run), no missing
+    option, and the same overrides but for ``hydra.mode=RUN`` or ``=MULTIRUN``, which Hydra
+    appends when no config set the mode; that override is then applied as Hydra applies it
+    (``_apply_overrides_to_config``, and the line appended to ``hydra.overrides.hydra``).
+    tests/test_sweeps.py compares the result with Hydra's own composition."""
+    from hydra._internal import hydra as hydra_module
+    from hydra.types import RunMode
+
+    Hydra = hydra_module.Hydra
+    get_mode, compose = Hydra.get_mode, Hydra.compose_config
+    kept: dict[tuple, DictConfig] = {}
+
+    def first(self: Any, config_name: str | None, overrides: list[str]) -> Any:
+        try:
+            cfg = compose(self, config_name=config_name, overrides=overrides, run_mode=RunMode.MULTIRUN,
+                          with_log_configuration=False, validate_sweep_overrides=False)  # fmt: skip
+        except Exception:  # as Hydra's get_mode: the next composition raises it
+            return None
+        kept[(config_name, tuple(overrides))] = cfg
+        return cfg.hydra.mode
+
+    def again(self: Any, config_name: str | None, overrides: list[str], run_mode: Any,
+              with_log_configuration: bool = False, from_shell: bool = True, validate_sweep_overrides: bool = True) -> DictConfig:  # fmt: skip
+        cfg = _reuse(kept, config_name, overrides, run_mode)
+        if cfg is None:
+            return compose(self, config_name, overrides, run_mode, with_log_configuration, from_shell, validate_sweep_overrides)
+        if with_log_configuration:  # what Hydra's compose_config does then
+            from hydra.core.utils import configure_log
+
+            configure_log(cfg.hydra.hydra_logging, cfg.hydra.verbose)
+            hydra_module.log = logging.getLogger(hydra_module.__name__)
+            self._print_debug_info(config_name, overrides, run_mode)
+        return cfg
+
+    Hydra.get_mode, Hydra.compose_config = first, again
+    try:
+        yield
+    finally:
+        Hydra.get_mode, Hydra.compose_config = get_mode, compose
+
+
+def _reuse(kept: dict, config_name: str | None, overrides: list[str], run_mode: Any) -> DictConfig | None:
+    """The kept composition for ``overrides`` (see :func:`compose_once`), or None."""
+    from hydra.types import RunMode
+
+    mode_lines = {f"hydra.mode={m.name}" for m in RunMode}
+    extra = overrides[-1:] if overrides and overrides[-1] in mode_lines else []
+    cfg = kept.pop((config_name, tuple(overrides[: len(overrides) - len(extra)])), None)
+    parsed = OverridesParser.create().parse_overrides(list(overrides))
+    choices = cfg.hydra.runtime.choices if cfg is not None else {}
+    if cfg is None or any(OmegaConf.is_missing(choices, k) for k in choices):
+        return None
+    if any(o.is_sweep_override() and (run_mode == RunMode.RUN or o.is_hydra_override()) for o in parsed):
+        return None  # Hydra's composition refuses these
+    if extra:
+        ConfigLoaderImpl._apply_overrides_to_config(parsed[-1:], cfg)
+        cfg.hydra.overrides.hydra.append(extra[0])
+    return cfg

@@ -1,10 +1,11 @@
 """The worker processes of zrp_ga's launcher and the loop that hands them jobs.
 
-Each worker is started once per sweep (forked from the sweep's process where that is safe, so
-that it starts with Hydra and the app already imported; spawned elsewhere), calls the warm-up
-function with the sweep's config while the sweeper still checks the jobs, then runs the jobs it
-is sent, one batch after another, each through Hydra's ``run_job`` as Hydra's own launchers do,
-and sends each job's ``JobReturn`` back as soon as it ends.
+Each worker is started once per sweep and warmed up once: where processes are forked (Linux),
+the sweep's process calls the warm-up function with the sweep's config (the app's modules, its
+compiled code, the first problem instance) and the workers are forked from it, sharing all
+that; elsewhere each spawned worker warms itself up while the sweeper checks the jobs. A
+worker runs the jobs it is sent, one batch after another, each through Hydra's ``run_job`` as
+Hydra's own launchers do, and sends each job's ``JobReturn`` back as soon as it ends.
 
 The driver (:func:`launch`) composes each job's config when a worker needs work, keeps every
 worker two batches ahead, collects the returns in job order, and rewrites the manifest table
@@ -80,7 +81,7 @@ def _serve(conn: Any, start: _Start) -> None:
     task_function = _task_function(start.task_function)
     try:
         if start.warm_up:
-            _locate(start.warm_up)(start.config)
+            _warm_up(start.warm_up, start.config)
         while True:
             batch = conn.recv()
             if batch is None:
@@ -95,13 +96,18 @@ def _serve(conn: Any, start: _Start) -> None:
         sys.exit(130)
 
 
+def _warm_up(path: str, config: DictConfig) -> None:
+    t0 = time.perf_counter()
+    _locate(path)(config)
+    log.debug(f"warm-up ({path}) in process {os.getpid()}: {time.perf_counter() - t0:.2f} s")
+
+
 def _run_job(idx: int, data: bytes, hydra_context: HydraContext, task_function: TaskFunction) -> JobReturn:
     """One job with Hydra's ``run_job``, as Hydra's basic launcher runs it."""
     config = pickle.loads(data)
     with open_dict(config):
         config.hydra.job.id = idx
         config.hydra.job.num = idx
-    HydraConfig.instance().set_config(config)
     return run_job(hydra_context=hydra_context, task_function=task_function, config=config,
                    job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")  # fmt: skip
 
@@ -159,10 +165,12 @@ class Pool:
         self.context = multiprocessing.get_context(method)
         self.settings = settings
         spawned = method != "fork"
+        if not spawned and settings.warm_up:  # once here, before the workers inherit it all
+            _warm_up(settings.warm_up, config)
         self.start = _Start(
             HydraContext(config_loader=None, callbacks=hydra_context.callbacks) if spawned else hydra_context,
             _portable(task_function) if spawned else task_function,
-            config, settings.warm_up, os.getpid(), Singleton.get_state() if spawned else None,
+            config, settings.warm_up if spawned else None, os.getpid(), Singleton.get_state() if spawned else None,
         )  # fmt: skip
         self.workers = [self._spawn() for _ in range(n_workers(settings.n_jobs))]
         atexit.register(self.close)

@@ -2,10 +2,11 @@
 same on every core).
 
 Long-lived worker processes, started once per sweep, import the app and load its compiled code
-once (while the sweeper checks the jobs), then take jobs a batch at a time and run each with
-Hydra's ``run_job``: its own output directory, ``.hydra`` config record, log file, callbacks
-(the manifest line) and return value, as with Hydra's basic or joblib launcher. Job configs are
-composed from a few of Hydra's compositions (:mod:`._compose`, equal to Hydra's own).
+once (forked from the sweep's process after it warmed up, where processes can be forked), then
+take jobs a batch at a time and run each with Hydra's ``run_job``: its own output directory,
+``.hydra`` config record, log file, callbacks (the manifest line) and return value, as with
+Hydra's basic or joblib launcher. Job configs are composed from a few of Hydra's compositions
+(``_compose.py``, equal to Hydra's own).
 
 This module is imported by Hydra's plugin discovery at every start of every Hydra app, so it
 imports nothing heavy; the work is in ``_workers`` and ``_compose`` (not scanned: names with
@@ -31,7 +32,7 @@ class ZrpGaLauncherConf:
     batch_size: int = 1  # jobs handed to a worker at a time (it holds two batches, so it never waits)
     start_method: Optional[str] = None  # multiprocessing's: null is fork on Linux, spawn elsewhere
     cached_composition: bool = True  # job configs from a few of Hydra's compositions (equal to Hydra's)
-    warm_up: Optional[str] = "zrp_ga.app.warm_up"  # called in each worker with the sweep's config first
+    warm_up: Optional[str] = "zrp_ga.app.warm_up"  # called with the sweep's config before the first job
     table_every_s: float = 1.0  # manifest.csv rewritten at most this often (and at the end)
 
 
@@ -56,7 +57,7 @@ class ZrpGaLauncher(Launcher):
             hydra_context.config_loader, self.settings.cached_composition
         )
         self.config, self.task_function, self.hydra_context = config, task_function, hydra_context
-        self.pool = _workers.Pool(self.settings, hydra_context, task_function, config)  # warms up meanwhile
+        self.pool = _workers.Pool(self.settings, hydra_context, task_function, config)
 
     def launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> Sequence[JobReturn]:
         from . import _workers
