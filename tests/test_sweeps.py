@@ -16,6 +16,7 @@ import itertools
 import json
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -77,10 +78,13 @@ def test_cached_compositions_equal_hydras_own(hydra_loader):
     """Values, options of groups with schemas and nested defaults (problem, algorithm), an
     experiment writing into a swept group's package, values of two types for one key."""
     jobs = [[f"problem={p}", f"crossover={c}", f"mutation={m}", f"seed={s}", "experiment=methods_ga"]
-            for p, c, m, s in itertools.product(["paper", "multipose"], ["one_point", "sbx"], ["polynomial", "gaussian"], [0, 1])]  # fmt: skip
+            for p, c, m, s in [("paper", "one_point", "polynomial", 0), ("paper", "one_point", "polynomial", 1),
+                               ("multipose", "sbx", "gaussian", 2), ("paper", "sbx", "polynomial", 3)]]  # fmt: skip
     jobs += [["algorithm=cmaes", "problem.seed=null"], ["algorithm=lm", "problem.seed=3"], ["algorithm=lm", "problem.seed=null"]]
-    n = _compare_with_hydra(hydra_loader, [], jobs)
-    assert n <= 1 + 3 + 2 + 2 + 2  # one per shape, one per other option of a group: not one per job
+    # Hydra's compositions: the first job, its three groups changed one at a time (the fourth job
+    # needs none of its own); the first of each shape and type of values (problem.seed null or
+    # an int), and lm with the null seed as a group changed: 7 for 7 jobs, but not one per job.
+    assert _compare_with_hydra(hydra_loader, [], jobs) == 1 + 3 + 2 + 1
 
 
 def test_options_that_write_outside_their_package_are_composed_by_hydra(hydra_loader):
@@ -151,17 +155,27 @@ def _summary(run: Path) -> dict:
     return s
 
 
-def test_launcher_writes_what_hydras_basic_launcher_writes(tmp_path):
-    args = ["-m", "seed=0,1,2", "crossover=sbx,blend", *SMALL, "population.generations=8", "checkpoint_every=3"]
-    basic = _zrp_ga(*args, f"hydra.sweep.dir={tmp_path / 'basic'}")
-    ours = _zrp_ga(*args, "hydra/launcher=zrp_ga", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={tmp_path / 'ours'}")
-    assert basic.returncode == 0 and ours.returncode == 0, ours.stderr[-2000:]
-    mb, mo = read_manifest(tmp_path / "basic"), read_manifest(tmp_path / "ours")
-    assert list(mo["status"]) == ["done"] * 6
+ARGS = ["-m", "seed=0,1", "crossover=sbx,blend", *SMALL, "population.generations=8", "checkpoint_every=3"]
+OURS = ["hydra/launcher=zrp_ga", "hydra.launcher.n_jobs=2"]
+
+
+@pytest.fixture(scope="module")
+def ours(tmp_path_factory) -> Path:
+    sweep = tmp_path_factory.mktemp("ours")
+    proc = _zrp_ga(*ARGS, *OURS, f"hydra.sweep.dir={sweep}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return sweep
+
+
+def test_launcher_writes_what_hydras_basic_launcher_writes(tmp_path, ours):
+    basic = _zrp_ga(*ARGS, f"hydra.sweep.dir={tmp_path / 'basic'}")
+    assert basic.returncode == 0, basic.stderr[-2000:]
+    mb, mo = read_manifest(tmp_path / "basic"), read_manifest(ours)
+    assert list(mo["status"]) == ["done"] * 4
     pd.testing.assert_frame_equal(mb.drop(columns="time"), mo.drop(columns="time"))
-    assert pd.read_csv(tmp_path / "ours" / "manifest.csv")["status"].tolist() == ["done"] * 6
+    assert pd.read_csv(ours / "manifest.csv")["status"].tolist() == ["done"] * 4
     for d in mo["dir"]:
-        b, o = tmp_path / "basic" / str(d), tmp_path / "ours" / str(d)
+        b, o = tmp_path / "basic" / str(d), ours / str(d)
         for name in ("convergence.csv",):
             pd.testing.assert_frame_equal(pd.read_csv(o / name).drop(columns=WALL_CLOCK_COLUMNS),
                                           pd.read_csv(b / name).drop(columns=WALL_CLOCK_COLUMNS))  # fmt: skip
@@ -176,20 +190,21 @@ def test_launcher_writes_what_hydras_basic_launcher_writes(tmp_path):
         assert (o / "zrp-ga.log").read_text().count("job ") == 1
 
 
-def test_a_sweep_run_again_keeps_its_finished_jobs_and_refuses_another_config(tmp_path):
-    args = ["-m", "seed=0,1", *SMALL, "population.generations=5", "hydra/launcher=zrp_ga", f"hydra.sweep.dir={tmp_path}"]
-    assert _zrp_ga(*args).returncode == 0
-    before = {p: p.read_bytes() for p in tmp_path.glob("*/convergence.csv")}
+def test_a_sweep_run_again_keeps_its_finished_jobs_and_refuses_another_config(tmp_path, ours):
+    sweep = tmp_path / "sweep"
+    shutil.copytree(ours, sweep)
+    args = [*ARGS, *OURS, f"hydra.sweep.dir={sweep}"]
+    before = {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")}
     again = _zrp_ga(*args)
     assert again.returncode == 0, again.stderr[-2000:]
-    assert {p: p.read_bytes() for p in tmp_path.glob("*/convergence.csv")} == before  # kept, not run again
-    assert (again.stdout + again.stderr).count("finished before; kept") == 2
-    other = _zrp_ga(*args[:-2], "population.generations=6", *args[-2:])
+    assert {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")} == before  # kept, not run again
+    assert (again.stdout + again.stderr).count("finished before; kept") == 4
+    other = _zrp_ga(*args[:-1], "population.generations=6", args[-1])
     assert other.returncode != 0
-    m = read_manifest(tmp_path)
-    assert list(m["status"]) == ["failed", "failed"]
+    m = read_manifest(sweep)
+    assert list(m["status"]) == ["failed"] * 4
     assert "holds a run of another config (population.generations differs)" in m.loc[0, "error"]
-    assert {p: p.read_bytes() for p in tmp_path.glob("*/convergence.csv")} == before
+    assert {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")} == before
 
 
 def test_manifest_survives_a_line_cut_by_a_crash(tmp_path):
@@ -200,8 +215,9 @@ def test_manifest_survives_a_line_cut_by_a_crash(tmp_path):
 
 
 # --- killed and started again -----------------------------------------------------------------------
-KILLABLE = ["-m", "seed=0,1,2,3,4,5", *SMALL, "population.generations=150", "checkpoint_every=7", "hydra/launcher=zrp_ga",
+KILLABLE = ["-m", "seed=0,1,2,3", *SMALL, "population.generations=150", "checkpoint_every=2", "hydra/launcher=zrp_ga",
             "hydra.launcher.n_jobs=2"]  # fmt: skip
+N_KILLABLE = 4
 
 
 @pytest.fixture(scope="module")
@@ -217,7 +233,7 @@ def _kill_at_random(sweep: Path, sig: int, rng: random.Random) -> subprocess.Pop
     number of generations has been logged over its jobs, plus a random delay."""
     proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *KILLABLE, f"hydra.sweep.dir={sweep}"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)  # fmt: skip
-    target, deadline = rng.randrange(1, 6 * 151), time.time() + 120
+    target, deadline = rng.randrange(1, N_KILLABLE * 151), time.time() + 120
     while proc.poll() is None and time.time() < deadline:
         if sum(p.read_bytes().count(b"\n") - 1 for p in sweep.glob("*/convergence.csv")) >= target:
             break
@@ -246,9 +262,10 @@ def _check_same_as(sweep: Path, whole: Path) -> None:
 def _kill_and_continue(tmp_path: Path, whole: Path, sig: int, seed: int) -> None:
     sweep = tmp_path / f"cut-{seed}"
     proc = _kill_at_random(sweep, sig, random.Random(seed))
-    if sig == signal.SIGINT and proc.returncode != 0:
-        assert proc.returncode == 130 and "continue with the same command" in proc.stderr.read().decode()
-        assert "Traceback" not in proc.stderr.read().decode()
+    assert proc.returncode != 0, "the sweep ended before it was interrupted"
+    if sig == signal.SIGINT:  # as Ctrl-C: a one-line hint, no traceback
+        err = proc.stderr.read().decode()
+        assert proc.returncode == 130 and "continue with the same command" in err and "Traceback" not in err, err
     again = _zrp_ga(*KILLABLE, f"hydra.sweep.dir={sweep}")
     assert again.returncode == 0, again.stderr[-3000:]
     _check_same_as(sweep, whole)
@@ -263,3 +280,25 @@ def test_a_killed_sweep_started_again_ends_as_an_uninterrupted_one(tmp_path, uni
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT], ids=["SIGKILL", "SIGINT"])
 def test_sweeps_killed_at_random_moments_end_as_an_uninterrupted_one(tmp_path, uninterrupted, sig, seed):
     _kill_and_continue(tmp_path, uninterrupted, sig, seed)
+
+
+@pytest.mark.slow
+def test_a_worker_that_dies_fails_its_jobs_and_the_sweep_goes_on(tmp_path, uninterrupted):
+    """One worker process killed (as by the out-of-memory killer): its jobs are failed and
+    recorded, another worker runs the rest; the same command then completes the sweep."""
+    sweep = tmp_path / "sweep"
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *KILLABLE, f"hydra.sweep.dir={sweep}"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)  # fmt: skip
+    deadline = time.time() + 120
+    while time.time() < deadline and not any(p.stat().st_size > 2000 for p in sweep.glob("*/convergence.csv")):
+        time.sleep(0.01)
+    children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
+    os.kill(int(children[0]), signal.SIGKILL)
+    assert proc.wait(timeout=300) != 0  # Hydra's sweeper reports the failed jobs
+    m = read_manifest(sweep)
+    failed = m[m["status"] == "failed"]
+    assert len(failed) >= 1 and failed["error"].str.contains("worker process running this job died").all()
+    assert set(m["status"]) == {"done", "failed"} and len(m) == N_KILLABLE
+    again = _zrp_ga(*KILLABLE, f"hydra.sweep.dir={sweep}")
+    assert again.returncode == 0, again.stderr[-3000:]
+    _check_same_as(sweep, uninterrupted)
