@@ -4,8 +4,9 @@
   composition of the same job: YAML text, and every node's type, key and flags.
 - A sweep on the launcher's workers against the same sweep on Hydra's basic launcher: every
   file a run writes (wall-clock figures aside), the ``.hydra`` records, the manifest.
-- Sweeps killed (SIGKILL to every process, as a reboot; SIGINT, as Ctrl-C) at seeded random
-  moments and started again with the same command, against the same sweep run uninterrupted:
+- Sweeps killed (SIGKILL to every process, as a reboot; SIGINT, as Ctrl-C; SIGTERM, as a job
+  limit) at seeded random moments and started again with the same command, against the same
+  sweep run uninterrupted:
   every run's convergence.csv (wall-clock columns aside), the manifest's states, and the
   runs ``zrp_ga.report.find_runs`` sees.
 """
@@ -263,7 +264,7 @@ def _kill_and_continue(tmp_path: Path, whole: Path, sig: int, seed: int) -> None
     sweep = tmp_path / f"cut-{seed}"
     proc = _kill_at_random(sweep, sig, random.Random(seed))
     assert proc.returncode != 0, "the sweep ended before it was interrupted"
-    if sig == signal.SIGINT:  # as Ctrl-C: a one-line hint, no traceback
+    if sig != signal.SIGKILL:  # Ctrl-C, or a job limit's SIGTERM: a one-line hint, no traceback
         err = proc.stderr.read().decode()
         assert proc.returncode == 130 and "continue with the same command" in err and "Traceback" not in err, err
     again = _zrp_ga(*KILLABLE, f"hydra.sweep.dir={sweep}")
@@ -276,8 +277,8 @@ def test_a_killed_sweep_started_again_ends_as_an_uninterrupted_one(tmp_path, uni
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", range(6))
-@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT], ids=["SIGKILL", "SIGINT"])
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT, signal.SIGTERM], ids=["SIGKILL", "SIGINT", "SIGTERM"])
 def test_sweeps_killed_at_random_moments_end_as_an_uninterrupted_one(tmp_path, uninterrupted, sig, seed):
     _kill_and_continue(tmp_path, uninterrupted, sig, seed)
 
@@ -302,3 +303,14 @@ def test_a_worker_that_dies_fails_its_jobs_and_the_sweep_goes_on(tmp_path, unint
     again = _zrp_ga(*KILLABLE, f"hydra.sweep.dir={sweep}")
     assert again.returncode == 0, again.stderr[-3000:]
     _check_same_as(sweep, uninterrupted)
+
+
+@pytest.mark.slow
+def test_spawned_workers_write_what_forked_ones_write(tmp_path, ours):
+    """start_method=spawn (the default where fork is unsafe: macOS, Windows)."""
+    proc = _zrp_ga(*ARGS, *OURS, "hydra.launcher.start_method=spawn", f"hydra.sweep.dir={tmp_path}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    spawned, forked = _runs(tmp_path), _runs(ours)
+    assert sorted(spawned) == sorted(forked)
+    for overrides, frame in forked.items():
+        pd.testing.assert_frame_equal(spawned[overrides], frame)

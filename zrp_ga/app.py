@@ -16,6 +16,7 @@ import logging
 import math
 import os
 import random
+import signal
 import sys
 from pathlib import Path
 from typing import Any
@@ -329,7 +330,8 @@ _started: list[Path] = []  # where the run writes, for the interrupt message
 
 def cli() -> None:
     """The console script: :func:`main`, with the errors in the user's input (a bad key or value,
-    a missing or malformed file) printed as one line, exit code 2, and Ctrl-C as a hint to resume.
+    a missing or malformed file) printed as one line, exit code 2, and Ctrl-C (or SIGTERM, as a
+    cluster's job limit sends it) as a hint to resume.
 
     Hydra prints composition errors over several lines and exits with 1; with
     ``HYDRA_FULL_ERROR`` set it raises them instead, which is how they are caught here (set it
@@ -341,6 +343,7 @@ def cli() -> None:
 
     full = os.environ.get("HYDRA_FULL_ERROR") == "1"
     os.environ["HYDRA_FULL_ERROR"] = "1"
+    signal.signal(signal.SIGTERM, _stop)  # a job limit or shutdown: stop as at Ctrl-C, checkpoints saved
     _register_launcher()
     from hydra_plugins.zrp_ga_launcher._compose import compose_once
 
@@ -365,6 +368,10 @@ def cli() -> None:
             print(f"\nzrp-ga: interrupted; the checkpoint and convergence.csv in {where} are complete up to the last "
                   f"finished generation: continue with  zrp-ga resume={where}", file=sys.stderr)  # fmt: skip
         sys.exit(130)
+
+
+def _stop(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
 
 
 def _register_launcher() -> None:

@@ -63,14 +63,20 @@ class _Start:
     config: DictConfig
     warm_up: str | None
     parent: int
-    singleton_state: Any = None  # Hydra's singletons, for spawned workers (as Hydra's joblib launcher)
+    singleton_state: Any = None  # Hydra's singletons, for spawned workers
 
 
 def _serve(conn: Any, start: _Start) -> None:
     """A worker's life: set up, warm up, run the batches it is sent until told to stop."""
     _die_with(start.parent)
     if start.singleton_state is not None:
-        Singleton.set_state(start.singleton_state)
+        # Hydra's singletons, as Hydra's joblib launcher passes them, but for OmegaConf's
+        # resolvers (closures: not picklable without cloudpickle): Hydra's are registered again
+        # by setup_globals, the app's when its module is imported for the task function.
+        Singleton._instances = start.singleton_state
+        from hydra.core.plugins import Plugins
+
+        Plugins.instance()
     setup_globals()
     try:
         from zrp_ga import hydra_callbacks
@@ -170,7 +176,7 @@ class Pool:
         self.start = _Start(
             HydraContext(config_loader=None, callbacks=hydra_context.callbacks) if spawned else hydra_context,
             _portable(task_function) if spawned else task_function,
-            config, settings.warm_up if spawned else None, os.getpid(), Singleton.get_state() if spawned else None,
+            config, settings.warm_up if spawned else None, os.getpid(), Singleton.get_state()["instances"] if spawned else None,
         )  # fmt: skip
         self.workers = [self._spawn() for _ in range(n_workers(settings.n_jobs))]
         atexit.register(self.close)
@@ -189,8 +195,9 @@ class Pool:
         return new
 
     def interrupt(self) -> None:
-        """After Ctrl-C: let the workers finish saving; signal those that did not get it."""
-        for patience, sig in zip(PATIENCE_S, (signal.SIGINT, signal.SIGTERM)):
+        """After Ctrl-C: let the workers finish saving; interrupt those that did not get the
+        signal, and kill what still runs after that."""
+        for patience, sig in zip(PATIENCE_S, (signal.SIGINT, signal.SIGKILL)):
             deadline = time.monotonic() + patience
             while any(w.process.is_alive() for w in self.workers) and time.monotonic() < deadline:
                 time.sleep(0.02)
@@ -209,7 +216,7 @@ class Pool:
         for w in self.workers:
             w.process.join(PATIENCE_S[1])
             if w.process.is_alive():
-                w.process.terminate()
+                w.process.kill()
         self.workers = []
 
 
