@@ -7,9 +7,10 @@
   time of the modules a run loads (``python -X importtime``), as a share of it.
 - **The 144-run operator grid** (``zrp-ga experiment=operator_grid``, 4 crossovers x 3
   mutations x 2 inversions x 2 rotations x 3 seeds of the 30-pose problem at 5,000 evaluations)
-  with Hydra's basic launcher, Hydra's joblib launcher and zrp_ga's (``hydra/launcher=local``):
-  wall time, CPU time of all its processes, and the runs' own compute (the sum of their
-  ``wall_s``); each sweep's manifest must say "done" for every job.
+  with Hydra's joblib launcher and zrp_ga's (``hydra/launcher=local``), and with ``--before``
+  the old code with Hydra's basic and joblib launchers: wall time, CPU time of all its
+  processes, and the runs' own compute (the sum of their ``wall_s``); each sweep's manifest must
+  say "done" for every job.
 - **A 1,008-run sweep**: the grid with 21 seeds, on zrp_ga's launcher only.
 - ``--before REV``: the same default run and grid with the code of git revision ``REV`` (the
   commit before the launcher, e.g. 3c19fb5), from a copy of that tree on ``PYTHONPATH``.
@@ -126,10 +127,8 @@ def main() -> None:
     for k in range(args.repeats):
         for c, code in codes.items():
             runs[c].append(default_run(code, work, len(runs[c]) + 10 * k))
-            for name, launcher in LAUNCHERS.items():
-                if code is not None and name == "zrp_ga":
-                    continue
-                grids.setdefault((c, name), []).append(sweep(GRID + launcher, code, work, f"{c.split()[0]}-{name}-{k}"))
+            for name in ("joblib", "zrp_ga") if code is None else ("basic", "joblib"):
+                grids.setdefault((c, name), []).append(sweep(GRID + LAUNCHERS[name], code, work, f"{c.split()[0]}-{name}-{k}"))
             print(f"round {k + 1} of {args.repeats} done, load {load()}", flush=True)
     big = sweep(GRID + LAUNCHERS["zrp_ga"] + [f"seed=range({args.big_seeds})"], None, work, "big") if args.big_seeds else None
     imports = {c: import_s(code, work) for c, code in codes.items()}
