@@ -80,6 +80,16 @@ def default_run(code: Path | None, work: Path, k: int) -> dict:
     return {"wall_s": wall, "cpu_s": cpu, "compute_s": compute, "fixed_s": wall - compute}
 
 
+def grid_job(code: Path | None, work: Path, k: int) -> dict:
+    """One job of the grid as a process of its own, as a launcher that starts one per job
+    (submitit on SLURM) runs it."""
+    out = work / f"grid-job-{k}"
+    job = ["crossover=sbx", "mutation=gaussian", "inversion=segment", "rotation=segment", f"seed={k % 3}"]
+    wall, cpu, _ = command([*GRID, "hydra.mode=RUN", *job, f"hydra.run.dir={out}"], code, work)
+    compute = json.loads((out / "summary.json").read_text())["wall_s"]
+    return {"wall_s": wall, "cpu_s": cpu, "compute_s": compute, "fixed_s": wall - compute}
+
+
 def sweep(args: list[str], code: Path | None, work: Path, name: str) -> dict:
     where = work / name
     wall, cpu, _ = command([*args, f"hydra.sweep.dir={where}"], code, work)
@@ -123,8 +133,9 @@ def main() -> None:
     load_before = load()
     for k, code in enumerate(codes.values()):  # compile and cache what each tree runs, outside the timings
         default_run(code, work, 1000 + k)
-    runs, grids = {c: [] for c in codes}, {}
+    runs, grids, jobs = {c: [] for c in codes}, {}, []
     for k in range(args.repeats):
+        jobs.append(grid_job(None, work, k))
         for c, code in codes.items():
             runs[c].append(default_run(code, work, len(runs[c]) + 10 * k))
             for name in ("joblib", "zrp_ga") if code is None else ("basic", "joblib"):
@@ -132,14 +143,14 @@ def main() -> None:
             print(f"round {k + 1} of {args.repeats} done, load {load()}", flush=True)
     big = sweep(GRID + LAUNCHERS["zrp_ga"] + [f"seed=range({args.big_seeds})"], None, work, "big") if args.big_seeds else None
     imports = {c: import_s(code, work) for c, code in codes.items()}
-    text = report(args, codes, runs, grids, big, imports, load_before, load())
+    text = report(args, codes, runs, grids, jobs, big, imports, load_before, load())
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "bench_sweep.md").write_text(text)
     print(text)
     print(f"files in {work}")
 
 
-def report(args, codes, runs, grids, big, imports, load_before: str, load_after: str) -> str:
+def report(args, codes, runs, grids, jobs, big, imports, load_before: str, load_after: str) -> str:
     cmd = "python experiments/bench_sweep.py" + (f" --before {args.before}" if args.before else "")
     cmd += f" --repeats {args.repeats}" + (f" --big-seeds {args.big_seeds}" if args.big_seeds != 21 else "")
     lines = [
@@ -160,14 +171,26 @@ def report(args, codes, runs, grids, big, imports, load_before: str, load_after:
         per_run = [dict(x=r["cpu_s"] / r["runs"]) for r in rows]
         lines.append(f"| {c} | {name} (`{' '.join(LAUNCHERS[name]) or 'default'}`) | {med(rows, 'wall_s')} | "
                      f"{med(rows, 'cpu_s')} | {med(rows, 'compute_s')} | {med(per_run, 'x')} |")  # fmt: skip
+    ours = grids[("after", "zrp_ga")]
+    for (c, name), rows in grids.items():
+        if (c, name) != ("after", "zrp_ga"):
+            ratio = {k: statistics.median(r[k] for r in rows) / statistics.median(r[k] for r in ours) for k in ("wall_s", "cpu_s")}
+            lines.append(f"\n{c}, {name} launcher / after, zrp_ga's launcher: wall time x {ratio['wall_s']:.2f}, "
+                         f"CPU time x {ratio['cpu_s']:.2f} (medians).")  # fmt: skip
+    lines += ["", f"One job of the grid as a process of its own (`zrp-ga experiment=operator_grid hydra.mode=RUN "
+              f"crossover=sbx mutation=gaussian inversion=segment rotation=segment seed=K`, as a launcher that starts "
+              f"a process per job runs it): {med(jobs, 'wall_s')} s wall, {med(jobs, 'cpu_s')} s CPU, of which the "
+              f"run's compute {med(jobs, 'compute_s')} s."]  # fmt: skip
     if big:
         lines += ["", f"## A {big['runs']:,}-run sweep (the grid with {args.big_seeds} seeds, zrp_ga's launcher)", "",
                   f"`zrp-ga experiment=operator_grid hydra/launcher=local seed=range({args.big_seeds})`: "
                   f"{big['wall_s']:.1f} s wall ({big['wall_s'] / big['runs'] * 1000:.1f} s per 1,000 runs), "
                   f"{big['cpu_s']:.1f} s CPU ({big['cpu_s'] / big['runs']:.3f} s per run), of which the runs' own "
                   f"compute {big['compute_s']:.1f} s (wall time inside the runs, summed).",
-                  "", f"10,000 such runs: {big['cpu_s'] / big['runs'] * 10_000 / 3600:.2f} worker-hours of CPU at "
-                  "this machine's speed (one worker = one core)."]  # fmt: skip
+                  "", f"10,000 such runs at this machine's speed, one worker being one core: "
+                  f"{big['cpu_s'] / big['runs'] * 10_000 / 3600:.2f} worker-hours on zrp_ga's launcher; "
+                  f"{statistics.median(j['cpu_s'] for j in jobs) * 10_000 / 3600:.2f} worker-hours with a process per "
+                  "run (CPU of the job above)."]  # fmt: skip
     return "\n".join(lines) + "\n"
 
 

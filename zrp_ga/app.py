@@ -301,12 +301,13 @@ def _same_run(cfg: DictConfig, stored: dict | None, out: Path) -> None:
 
     def plain(o: Any) -> Any:  # as JSON holds it: non-finite floats as null
         if isinstance(o, dict):
-            return {str(k): plain(v) for k, v in o.items() if k not in ("progress", "resume")}
+            return {str(k): plain(v) for k, v in o.items()}
         if isinstance(o, (list, tuple)):
             return [plain(v) for v in o]
         return None if isinstance(o, float) and not math.isfinite(o) else o
 
-    mine, theirs = plain(OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)), plain(stored or {})
+    mine, theirs = (plain({k: v for k, v in c.items() if k not in ("progress", "resume")})
+                    for c in (OmegaConf.to_container(cfg, resolve=True, enum_to_str=True), stored or {}))  # fmt: skip
     if mine != theirs:
         raise ConfigError(f"{out} holds a run of another config ({_difference(mine, theirs)} differs); "
                           "run this sweep into another hydra.sweep.dir")  # fmt: skip
