@@ -191,6 +191,32 @@ def test_launcher_writes_what_hydras_basic_launcher_writes(tmp_path, ours):
         assert (o / "zrp-ga.log").read_text().count("job ") == 1
 
 
+def test_sweep_jobs_equal_single_runs_built_afresh(tmp_path, ours):
+    """A sweep's workers reuse problem instances and their diagnostics (kept beside the sweep):
+    each job's files against a single run of its config, built from nothing in this process."""
+    from zrp_ga import app, config
+
+    m = read_manifest(ours)
+    for overrides, d in zip(m["overrides"], m["dir"]):
+        single = tmp_path / str(d)
+        app.run(config.load(overrides.split()), single)
+        pd.testing.assert_frame_equal(pd.read_csv(ours / str(d) / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS),
+                                      pd.read_csv(single / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS))  # fmt: skip
+        swept, alone = (json.loads((x / "summary.json").read_text()) for x in (ours / str(d), single))
+        assert swept["identifiability"] == alone["identifiability"] and swept["best_genome"] == alone["best_genome"]
+    assert len(list((ours / ".zrp_ga").glob("diagnostics-*.json"))) == 2  # one per problem instance (seed)
+
+
+def test_warm_up_builds_the_base_instance_and_writes_nothing(tmp_path, monkeypatch):
+    from zrp_ga import app, config
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(app, "_instances", {})
+    app.warm_up(config.load(SMALL + ["seed=5"], return_hydra_config=True))
+    assert [json.loads(k)["seed"] for k in app._instances] == [5]
+    assert not list(tmp_path.iterdir())
+
+
 def test_a_sweep_run_again_keeps_its_finished_jobs_and_refuses_another_config(tmp_path, ours):
     sweep = tmp_path / "sweep"
     shutil.copytree(ours, sweep)
