@@ -131,17 +131,20 @@ def main() -> None:
     if args.before:
         codes[f"before ({args.before})"] = tree(args.before, work / "before-tree")
     load_before = load()
-    for k, code in enumerate(codes.values()):  # compile and cache what each tree runs, outside the timings
-        default_run(code, work, 1000 + k)
+    for i, code in enumerate(codes.values()):  # compile and cache what each tree runs, outside the timings
+        default_run(code, work, 1000 + i)
     runs, grids, jobs = {c: [] for c in codes}, {}, []
     for k in range(args.repeats):
         jobs.append(grid_job(None, work, k))
-        for c, code in codes.items():
-            runs[c].append(default_run(code, work, len(runs[c]) + 10 * k))
+        for i, (c, code) in enumerate(codes.items()):
+            runs[c].append(default_run(code, work, 100 * i + k))
             for name in ("joblib", "zrp_ga") if code is None else ("basic", "joblib"):
                 grids.setdefault((c, name), []).append(sweep(GRID + LAUNCHERS[name], code, work, f"{c.split()[0]}-{name}-{k}"))
-            print(f"round {k + 1} of {args.repeats} done, load {load()}", flush=True)
+            raw = {"runs": runs, "grids": {" / ".join(key): rows for key, rows in grids.items()}, "jobs": jobs}
+            (work / "raw.json").write_text(json.dumps(raw, indent=1))  # what a crash would not take away
+        print(f"round {k + 1} of {args.repeats} done, load {load()}", flush=True)
     big = sweep(GRID + LAUNCHERS["zrp_ga"] + [f"seed=range({args.big_seeds})"], None, work, "big") if args.big_seeds else None
+    (work / "raw.json").write_text(json.dumps({**raw, "big": big}, indent=1))
     imports = {c: import_s(code, work) for c, code in codes.items()}
     text = report(args, codes, runs, grids, jobs, big, imports, load_before, load())
     RESULTS.mkdir(exist_ok=True)
