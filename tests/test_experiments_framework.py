@@ -46,11 +46,13 @@ def test_every_option_of_every_group_composes_and_builds(group, tmp_path):
         assert hasattr(p.algorithm.toolbox, "evaluate") and p.task.problem.layout.size >= 6 * p.task.robot.n
 
 
-@pytest.mark.parametrize("preset", ["local"])
-def test_launcher_presets_compose(preset):
-    pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
+@pytest.mark.parametrize("preset, target", [("local", "ZrpGaLauncher"), ("zrp_ga", "ZrpGaLauncher"), ("joblib", "Joblib")])
+def test_launcher_presets_compose(preset, target):
+    if preset == "joblib":
+        pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
     cfg = config.load([f"hydra/launcher={preset}"], return_hydra_config=True)
-    assert "Joblib" in cfg.hydra.launcher._target_
+    assert target in cfg.hydra.launcher._target_
+    assert preset != "local" or cfg.hydra.launcher.n_jobs == -1
 
 
 @pytest.mark.parametrize(
@@ -203,10 +205,16 @@ def test_cluster_launchers_run_a_sweep_here(tmp_path, launcher, plugin):
     path on this machine; ray_local starts a local Ray cluster."""
     pytest.importorskip(plugin)
     sweep = tmp_path / "sweep"
-    proc = _zrp_ga("-m", "seed=0,1", "problem.n_validation=5", "population.generations=3",
-                   f"hydra/launcher={launcher}", f"hydra.sweep.dir={sweep}", timeout=600)
+    args = ("-m", "seed=0,1", "problem.n_validation=5", "population.generations=3", f"hydra/launcher={launcher}",
+            f"hydra.sweep.dir={sweep}")  # fmt: skip
+    proc = _zrp_ga(*args, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     manifest = read_manifest(sweep)
     assert list(manifest["status"]) == ["done", "done"]
     for d in manifest["dir"]:
         assert len(pd.read_csv(sweep / str(d) / "convergence.csv")) == 4
+    runs = {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")}
+    again = _zrp_ga(*args, timeout=600)  # the same command again: the sweep is complete, nothing runs
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")} == runs
+    assert list(read_manifest(sweep)["status"]) == ["done", "done"]

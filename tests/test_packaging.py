@@ -6,7 +6,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_every_code_package_is_listed_in_pyproject_and_the_configs_ship_whole():
     setup = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
-    code = {".".join(p.relative_to(ROOT).parent.parts) for p in (ROOT / "zrp_ga").rglob("__init__.py")}
+    code = {".".join(p.relative_to(ROOT).parent.parts) for d in ("zrp_ga", "hydra_plugins") for p in (ROOT / d).rglob("__init__.py")}
+    assert not (ROOT / "hydra_plugins" / "__init__.py").exists()  # Hydra's namespace package
     assert code | {"zrp_ga.conf"} == set(setup["packages"])
     assert setup["package-data"]["zrp_ga.conf"] == ["**/*.yaml"]
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import functools
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -85,11 +86,16 @@ class ConvergenceLog(Callback):
         if self.keep_until_gen is not None and self.path.exists():
             with open(self.path, newline="") as f:
                 kept = [row for row in csv.DictReader(f) if int(row["gen"]) <= self.keep_until_gen]
-        self._file = open(self.path, "w", newline="")
+        # The kept rows go to a new file that then replaces the old one: a kill meanwhile leaves
+        # the old file whole (rewriting it in place would lose the rows a resumed run needs).
+        tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        with open(tmp, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore", restval="")
+            writer.writeheader()
+            writer.writerows(kept)
+        os.replace(tmp, self.path)
+        self._file = open(self.path, "a", newline="")
         self._writer = csv.DictWriter(self._file, fieldnames=COLUMNS, extrasaction="ignore", restval="")
-        self._writer.writeheader()
-        self._writer.writerows(kept)
-        self._file.flush()
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
         self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})

@@ -5,14 +5,22 @@ before Hydra creates the run's directory, so that bad input stops with one line 
 nothing behind (the app reuses what it built).
 
 Every job of a multirun appends its state to ``manifest.jsonl`` in the sweep directory when it
-starts (``running``) and when it ends (``done``, or ``failed`` with the error), one JSON line
-each, so that a sweep still running, or killed, can be read at any time; the last line of a job
-is its state; ``manifest.csv`` holds one row per job, rewritten as each job ends. Lines are short
-and appended with one ``write`` each, so jobs of a parallel launcher do not interleave them.
+starts (``running``) and when it ends (``done``; ``failed`` with the error; ``interrupted`` at
+Ctrl-C), one JSON line each, so that a sweep still running, or killed, can be read at any time;
+the last line of a job is its state. A job whose directory already holds a finished run (a
+sweep started again, see ``zrp_ga.app.sweep_job``) is recorded ``done`` without passing through
+``running``. ``manifest.csv`` holds one row per job, rewritten whole (a temporary file, then a
+rename) as jobs end.
+
+Nothing a kill can do loses a recorded state: lines are short and appended with one ``write``
+each (jobs of a parallel launcher do not interleave them, and a killed process writes a line
+whole or not at all), and a sweep started again first ends a line that a crash of the machine
+left unfinished, so that its own lines stay whole; :func:`read_manifest` skips such a fragment.
 """
 
 from __future__ import annotations
 
+import csv
 import datetime
 import json
 import os
@@ -26,6 +34,11 @@ from hydra.types import RunMode
 from omegaconf import DictConfig
 
 MANIFEST = "manifest.jsonl"
+TABLE = "manifest.csv"
+COLUMNS = ["job", "overrides", "dir", "status", "error", "time"]
+
+sweep_dir: Path | None = None  # the sweep this process started (for the interrupt message)
+table_each_job = True  # False in the workers of zrp_ga's launcher, which writes the table itself
 
 
 def _append(path: Path, record: dict) -> None:
@@ -37,16 +50,80 @@ def _append(path: Path, record: dict) -> None:
         os.close(fd)
 
 
-def read_manifest(sweep_dir: str | Path):
+def _records(sweep: Path) -> list[dict]:
+    """The manifest's records, skipping a line a crash left unfinished."""
+    path = Path(sweep) / MANIFEST
+    out = []
+    for line in path.read_text().splitlines():
+        try:
+            record = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(record, dict) and "job" in record:
+            out.append(record)
+    return out
+
+
+def job_states(sweep: str | Path) -> list[dict]:
+    """Each job's last record, by job number."""
+    last = {int(r["job"]): r for r in _records(Path(sweep))}
+    return [{k: last[job].get(k) for k in COLUMNS} for job in sorted(last)]
+
+
+def read_manifest(sweep: str | Path):
     """One row per job with its last state (a pandas DataFrame): job, overrides, dir, status, error, time."""
     import pandas as pd
 
-    path = Path(sweep_dir) / MANIFEST
-    records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-    if not records:
-        return pd.DataFrame(columns=["job", "overrides", "dir", "status", "error", "time"])
-    df = pd.DataFrame(records).drop_duplicates("job", keep="last").sort_values("job")
-    return df.reset_index(drop=True)
+    return pd.DataFrame(job_states(sweep), columns=COLUMNS)
+
+
+def write_table(sweep: str | Path) -> None:
+    """``manifest.csv`` from ``manifest.jsonl``, replaced whole."""
+    sweep = Path(sweep)
+    tmp = sweep / f".manifest.{os.getpid()}.csv"
+    with open(tmp, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=COLUMNS)
+        writer.writeheader()
+        writer.writerows(job_states(sweep))
+    os.replace(tmp, sweep / TABLE)
+
+
+def repair(sweep: str | Path) -> None:
+    """Before a sweep (started again) writes: end a line left unfinished by a crash, so that the
+    next one stays whole, and remove temporary tables of killed processes."""
+    sweep = Path(sweep)
+    path = sweep / MANIFEST
+    if path.exists() and path.stat().st_size:
+        with open(path, "rb") as f:
+            f.seek(-1, os.SEEK_END)
+            unfinished = f.read(1) != b"\n"
+        if unfinished:
+            fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+            try:
+                os.write(fd, b"\n")
+            finally:
+                os.close(fd)
+    for tmp in sweep.glob(".manifest.*.csv"):
+        tmp.unlink(missing_ok=True)
+
+
+def record(status: str, error: str | None = None) -> None:
+    """Append this job's state to its sweep's manifest (nothing outside a multirun job)."""
+    if not HydraConfig.initialized():
+        return
+    hc = HydraConfig.get()
+    if hc.mode != RunMode.MULTIRUN:
+        return
+    sweep = Path(hc.sweep.dir)
+    sweep.mkdir(parents=True, exist_ok=True)
+    _append(sweep / MANIFEST, {
+        "job": int(hc.job.num),
+        "overrides": " ".join(hc.overrides.task),
+        "dir": str(hc.sweep.subdir),
+        "status": status,
+        "error": error,
+        "time": datetime.datetime.now().isoformat(timespec="seconds"),
+    })  # fmt: skip
 
 
 class Refused(BaseException):
@@ -74,36 +151,28 @@ class Prepare(Callback):
 class Manifest(Callback):
     """Writes the sweep manifest (see the module docstring)."""
 
-    def _record(self, status: str, error: str | None = None) -> None:
-        hc = HydraConfig.get()
-        if hc.mode != RunMode.MULTIRUN:
-            return
-        sweep = Path(hc.sweep.dir)
-        sweep.mkdir(parents=True, exist_ok=True)
-        _append(
-            sweep / MANIFEST,
-            {
-                "job": int(hc.job.num),
-                "overrides": " ".join(hc.overrides.task),
-                "dir": str(hc.sweep.subdir),
-                "status": status,
-                "error": error,
-                "time": datetime.datetime.now().isoformat(timespec="seconds"),
-            },
-        )
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        global sweep_dir
+        sweep_dir = Path(config.hydra.sweep.dir)
+        sweep_dir.mkdir(parents=True, exist_ok=True)
+        repair(sweep_dir)
 
     def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
-        self._record("running")
+        from zrp_ga import app
+
+        if HydraConfig.get().mode == RunMode.MULTIRUN and app.run_status(Path(HydraConfig.get().runtime.output_dir)) != "done":
+            record("running")
 
     def on_job_end(self, config: DictConfig, job_return: JobReturn, **kwargs: Any) -> None:
+        if HydraConfig.get().mode != RunMode.MULTIRUN:
+            return
         if job_return.status == JobStatus.COMPLETED:
-            self._record("done")
+            record("done")
         else:
             exc = job_return._return_value
-            self._record("failed", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
-        if HydraConfig.get().mode == RunMode.MULTIRUN:
-            # A table of the jobs so far, replaced whole (Hydra skips on_multirun_end when a job failed).
-            sweep = Path(HydraConfig.get().sweep.dir)
-            tmp = sweep / f".manifest.{os.getpid()}.csv"
-            read_manifest(sweep).to_csv(tmp, index=False)
-            os.replace(tmp, sweep / "manifest.csv")
+            record("failed", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
+        if table_each_job:  # (Hydra skips on_multirun_end when a job failed)
+            write_table(HydraConfig.get().sweep.dir)
+
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        write_table(config.hydra.sweep.dir)

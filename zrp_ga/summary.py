@@ -49,26 +49,67 @@ def model_rank(task: Task) -> int:
     return rank(p.nominal, p.layout, p.data.position_only)
 
 
-def diagnostics(task: Task, first: bool) -> dict[str, Any]:
+def diagnostics(task: Task, first: bool, key: str | None = None) -> dict[str, Any]:
     """The identifiability of the calibration data, and a warning when it carries less than the
-    model could identify (once per sweep and problem instance; not again when resuming)."""
-    report, rank = task.problem.identifiability(), model_rank(task)
-    if report.rank < rank and first and _first_in_sweep(task.name):
+    model could identify (once per sweep and problem instance; not again when resuming).
+    ``key``: the problem instance's key (sweep jobs); the figures are then computed once per
+    instance in this process and once per sweep, which keeps them beside its manifest."""
+    d = _diagnostics.get(key) if key else None
+    if d is None:
+        d = _from_sweep(key, lambda: _compute(task)) if key else _compute(task)
+        if key:
+            _diagnostics[key] = d
+    if d["rank"] < d["model_rank"] and first and _first_in_sweep(task.name):
         log.warning("the calibration poses identify %d of the %d parameter combinations the model can identify "
-                    "(%d parameters); more poses would help. Unidentifiable:\n  %s", report.rank, rank,
-                    report.n_params, "\n  ".join(report.null_directions))  # fmt: skip
-    return {"rank": report.rank, "model_rank": rank, "n_params": report.n_params,
-            "condition_number": report.condition_number, "unidentifiable": report.null_directions}  # fmt: skip
+                    "(%d parameters); more poses would help. Unidentifiable:\n  %s", d["rank"], d["model_rank"],
+                    d["n_params"], "\n  ".join(d["unidentifiable"]))  # fmt: skip
+    return d
 
 
-def _first_in_sweep(instance: str) -> bool:
-    """True for a single run, and for the first job of a sweep that asks about ``instance``."""
+_diagnostics: dict[str, dict[str, Any]] = {}  # instance key -> diagnostics, in this process
+
+
+def _compute(task: Task) -> dict[str, Any]:
+    report = task.problem.identifiability()  # plain numbers, as they read back from JSON
+    return {"rank": int(report.rank), "model_rank": model_rank(task), "n_params": int(report.n_params),
+            "condition_number": float(report.condition_number), "unidentifiable": list(report.null_directions)}  # fmt: skip
+
+
+def _from_sweep(key: str, compute) -> dict[str, Any]:
+    """``compute()``, kept in the sweep directory under ``key``'s hash (outside a sweep: computed)."""
+    import json
+
+    sweep = _sweep_dir()
+    if sweep is None:
+        return compute()
+    path = sweep / ".zrp_ga" / f"diagnostics-{hashlib.sha1(key.encode()).hexdigest()[:16]}.json"
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        pass
+    d = compute()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(d))  # floats as repr: read back exactly (inf as Infinity)
+    os.replace(tmp, path)
+    return d
+
+
+def _sweep_dir() -> Path | None:
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
     if not HydraConfig.initialized() or HydraConfig.get().mode != RunMode.MULTIRUN:
+        return None
+    return Path(HydraConfig.get().sweep.dir)
+
+
+def _first_in_sweep(instance: str) -> bool:
+    """True for a single run, and for the first job of a sweep that asks about ``instance``."""
+    sweep = _sweep_dir()
+    if sweep is None:
         return True
-    marks = Path(HydraConfig.get().sweep.dir) / ".zrp_ga"
+    marks = sweep / ".zrp_ga"
     marks.mkdir(parents=True, exist_ok=True)
     try:
         os.close(os.open(marks / f"announced-{hashlib.sha1(instance.encode()).hexdigest()[:12]}", os.O_CREAT | os.O_EXCL))

@@ -1,0 +1,336 @@
+"""The worker processes of zrp_ga's launcher and the loop that hands them jobs.
+
+Each worker is started once per sweep and warmed up once: where processes are forked (Linux),
+the sweep's process calls the warm-up function with the sweep's config (the app's modules, its
+compiled code, the first problem instance) and the workers are forked from it, sharing all
+that; elsewhere each spawned worker warms itself up while the sweeper checks the jobs. A
+worker runs the jobs it is sent, one batch after another, each through Hydra's ``run_job`` as
+Hydra's own launchers do, and sends each job's ``JobReturn`` back as soon as it ends.
+
+The driver (:func:`launch`) composes each job's config when a worker needs work, keeps every
+worker two batches ahead, collects the returns in job order, and rewrites the manifest table
+now and then. A worker that dies (killed, out of memory) fails its unfinished jobs, which are
+recorded in the manifest, and another takes its place. At Ctrl-C every process of the sweep
+gets the signal: each worker's job saves its checkpoint and records ``interrupted``, the driver
+waits for them (and signals any worker that did not get it) before it raises
+``KeyboardInterrupt`` to the console script. Workers die with the driver (Linux: the kernel
+kills them; elsewhere they stop at their next job), so that a sweep killed and started again
+never has two processes writing one job's files.
+"""
+
+from __future__ import annotations
+
+import atexit
+import collections
+import dataclasses
+import logging
+import multiprocessing
+import os
+import pickle
+import signal
+import sys
+import time
+from multiprocessing.connection import wait
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+from hydra.core.hydra_config import HydraConfig
+from hydra.core.singleton import Singleton
+from hydra.core.utils import JobReturn, JobStatus, configure_log, filter_overrides, run_job, setup_globals
+from hydra.types import HydraContext, TaskFunction
+from omegaconf import DictConfig, open_dict
+
+log = logging.getLogger(__name__)
+AHEAD = 2  # batches a worker holds: one running, one waiting
+PATIENCE_S = (2.0, 15.0)  # at Ctrl-C: waiting for workers to stop on their own, then after signalling them
+
+
+def n_workers(n_jobs: int) -> int:
+    """``n_jobs``, or with -1 the cores this process may run on."""
+    if n_jobs > 0:
+        return n_jobs
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, cores + 1 + n_jobs)  # joblib's convention: -1 all, -2 all but one
+
+
+# --- in a worker ------------------------------------------------------------------------------------
+@dataclasses.dataclass
+class _Start:
+    """What a worker needs (pickled for spawned workers)."""
+
+    hydra_context: HydraContext
+    task_function: Any  # the function, or (module, qualified name) when it cannot be pickled
+    config: DictConfig
+    warm_up: str | None
+    parent: int
+    singleton_state: Any = None  # Hydra's singletons, for spawned workers
+
+
+def _serve(conn: Any, start: _Start) -> None:
+    """A worker's life: set up, warm up, run the batches it is sent until told to stop."""
+    _die_with(start.parent)
+    if start.singleton_state is not None:
+        # Hydra's singletons, as Hydra's joblib launcher passes them, but for OmegaConf's
+        # resolvers (closures: not picklable without cloudpickle): Hydra's are registered again
+        # by setup_globals, the app's when its module is imported for the task function.
+        Singleton._instances = start.singleton_state
+        from hydra.core.plugins import Plugins
+
+        Plugins.instance()
+    setup_globals()
+    try:
+        from zrp_ga import hydra_callbacks
+
+        hydra_callbacks.table_each_job = False  # the driver writes the table
+    except ImportError:
+        pass
+    task_function = _task_function(start.task_function)
+    try:
+        if start.warm_up:
+            _warm_up(start.warm_up, start.config)
+        while True:
+            batch = conn.recv()
+            if batch is None:
+                return
+            for idx, data in batch:
+                ret = _run_job(idx, data, start.hydra_context, task_function)
+                conn.send_bytes(_dump_return(idx, ret))
+    except (EOFError, OSError):  # the driver is gone
+        return
+    except KeyboardInterrupt:  # the job saved its checkpoint and recorded it; no traceback
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        sys.exit(130)
+
+
+def _warm_up(path: str, config: DictConfig) -> None:
+    t0 = time.perf_counter()
+    _locate(path)(config)
+    log.debug(f"warm-up ({path}) in process {os.getpid()}: {time.perf_counter() - t0:.2f} s")
+
+
+def _run_job(idx: int, data: bytes, hydra_context: HydraContext, task_function: TaskFunction) -> JobReturn:
+    """One job with Hydra's ``run_job``, as Hydra's basic launcher runs it."""
+    config = pickle.loads(data)
+    with open_dict(config):
+        config.hydra.job.id = idx
+        config.hydra.job.num = idx
+    return run_job(hydra_context=hydra_context, task_function=task_function, config=config,
+                   job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")  # fmt: skip
+
+
+def _dump_return(idx: int, ret: JobReturn) -> bytes:
+    """The job number and ``ret``, pickled; an exception that cannot be pickled goes as its text."""
+    try:
+        return pickle.dumps((idx, ret))
+    except Exception:
+        ret.return_value = RuntimeError(f"{type(ret._return_value).__name__}: {ret._return_value}")
+        return pickle.dumps((idx, ret))
+
+
+def _die_with(parent: int) -> None:
+    """Linux: have the kernel kill this process when the driver dies (``prctl`` has no Python
+    binding; ``PR_SET_PDEATHSIG`` is 1). Elsewhere the worker stops at its next job, when its
+    pipe to the driver closes."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def _task_function(ref: Any) -> TaskFunction:
+    if not isinstance(ref, tuple):
+        return ref
+    fn = _locate(".".join(ref))
+    return getattr(fn, "__wrapped__", fn)  # @hydra.main's wrapper: the function it wraps
+
+
+def _locate(path: str) -> Callable:
+    from hydra.utils import get_method
+
+    return get_method(path)
+
+
+# --- the driver ---------------------------------------------------------------------------------------
+@dataclasses.dataclass
+class _Worker:
+    process: Any
+    conn: Any
+    batches: collections.deque = dataclasses.field(default_factory=collections.deque)  # of [job idx]
+
+
+class Pool:
+    """The worker processes of one sweep (see the module docstring)."""
+
+    def __init__(self, settings: Any, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig):
+        method = settings.start_method or ("fork" if sys.platform.startswith("linux") else "spawn")
+        self.context = multiprocessing.get_context(method)
+        self.settings = settings
+        spawned = method != "fork"
+        if not spawned and settings.warm_up:  # once here, before the workers inherit it all
+            _warm_up(settings.warm_up, config)
+        self.start = _Start(
+            HydraContext(config_loader=None, callbacks=hydra_context.callbacks) if spawned else hydra_context,
+            _portable(task_function) if spawned else task_function,
+            config, settings.warm_up if spawned else None, os.getpid(), Singleton.get_state()["instances"] if spawned else None,
+        )  # fmt: skip
+        self.workers = [self._spawn() for _ in range(n_workers(settings.n_jobs))]
+        atexit.register(self.close)
+
+    def _spawn(self) -> _Worker:
+        here, there = self.context.Pipe()
+        process = self.context.Process(target=_serve, args=(there, self.start), daemon=True, name="zrp_ga-worker")
+        process.start()
+        there.close()
+        return _Worker(process, here)
+
+    def replace(self, worker: _Worker) -> _Worker:
+        worker.conn.close()
+        new = self._spawn()
+        self.workers[self.workers.index(worker)] = new
+        return new
+
+    def interrupt(self) -> None:
+        """After Ctrl-C: let the workers finish saving; interrupt those that did not get the
+        signal, and kill what still runs after that."""
+        for patience, sig in zip(PATIENCE_S, (signal.SIGINT, signal.SIGKILL)):
+            deadline = time.monotonic() + patience
+            while any(w.process.is_alive() for w in self.workers) and time.monotonic() < deadline:
+                time.sleep(0.02)
+            for w in self.workers:
+                if w.process.is_alive():
+                    os.kill(w.process.pid, sig)
+        for w in self.workers:
+            w.process.join(PATIENCE_S[0])
+
+    def close(self) -> None:
+        for w in self.workers:
+            try:
+                w.conn.send(None)
+            except (OSError, ValueError):
+                pass
+        for w in self.workers:
+            w.process.join(PATIENCE_S[1])
+            if w.process.is_alive():
+                w.process.kill()
+        self.workers = []
+
+
+def _portable(task_function: TaskFunction) -> Any:
+    """The task function, or its module and name when it cannot be pickled (``@hydra.main``'s
+    wrapper has taken its name)."""
+    try:
+        pickle.dumps(task_function)
+        return task_function
+    except Exception:
+        return (task_function.__module__, task_function.__qualname__)
+
+
+def launch(launcher: Any, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> list[JobReturn]:
+    """Run the jobs on the launcher's workers; their returns in job order."""
+    setup_globals()
+    configure_log(launcher.config.hydra.hydra_logging, launcher.config.hydra.verbose)
+    sweep = Path(str(launcher.config.hydra.sweep.dir))
+    sweep.mkdir(parents=True, exist_ok=True)
+    pool: Pool = launcher.pool
+    log.info(f"Launching {len(job_overrides)} jobs on {len(pool.workers)} workers, sweep output dir : {sweep}")
+    todo = collections.deque((initial_job_idx + k, list(o)) for k, o in enumerate(job_overrides))
+    dispatcher = _Dispatcher(launcher, pool, todo, sweep)
+    try:
+        returns = dispatcher.run()
+    except KeyboardInterrupt:
+        pool.interrupt()
+        dispatcher.write_table()
+        raise
+    dispatcher.write_table()
+    return [returns[initial_job_idx + k] for k in range(len(job_overrides))]
+
+
+class _Dispatcher:
+    """Hands out batches, collects returns, replaces dead workers (see the module docstring)."""
+
+    def __init__(self, launcher: Any, pool: Pool, todo: collections.deque, sweep: Path):
+        self.launcher, self.pool, self.todo, self.sweep = launcher, pool, todo, sweep
+        self.overrides = dict(todo)
+        self.returns: dict[int, JobReturn] = {}
+        self.table_at = time.monotonic()
+
+    def run(self) -> dict[int, JobReturn]:
+        for w in list(self.pool.workers):
+            self.feed(w)
+        while len(self.returns) < len(self.overrides):
+            handles = {}
+            for w in self.pool.workers:
+                handles[w.conn] = handles[w.process.sentinel] = w
+            for handle in wait(list(handles), timeout=self.launcher.settings.table_every_s):
+                w = handles[handle]
+                if w in self.pool.workers:
+                    self.receive(w) if handle is w.conn else self.lost(w)
+            if time.monotonic() - self.table_at > self.launcher.settings.table_every_s:
+                self.write_table()
+        return self.returns
+
+    def feed(self, w: _Worker) -> None:
+        """Send ``w`` batches until it holds ``AHEAD``."""
+        while len(w.batches) < AHEAD and self.todo:
+            batch = [self.todo.popleft() for _ in range(min(self.launcher.settings.batch_size, len(self.todo)))]
+            for idx, overrides in batch:
+                log.info(f"\t#{idx} : {' '.join(filter_overrides(overrides))}")
+            w.conn.send([(idx, self.compose(overrides)) for idx, overrides in batch])
+            w.batches.append([idx for idx, _ in batch])
+
+    def compose(self, overrides: list[str]) -> bytes:
+        """The job's config, composed now (while the workers run the jobs before it), pickled."""
+        config = self.launcher.hydra_context.config_loader.load_sweep_config(self.launcher.config, overrides)
+        return pickle.dumps(config)
+
+    def receive(self, w: _Worker) -> None:
+        try:
+            data = w.conn.recv_bytes()
+        except (EOFError, OSError):
+            return self.lost(w)
+        idx, self.returns[idx] = pickle.loads(data)
+        w.batches[0].remove(idx)
+        if not w.batches[0]:
+            w.batches.popleft()
+            self.feed(w)
+
+    def lost(self, w: _Worker) -> None:
+        """``w`` died: its unfinished jobs fail (and are recorded); another worker takes its place."""
+        w.process.join(1.0)
+        code = w.process.exitcode
+        for idx in [i for batch in w.batches for i in batch]:
+            error = RuntimeError(f"the worker process running this job died (exit code {code})")
+            self.returns[idx] = JobReturn(overrides=self.overrides[idx], status=JobStatus.FAILED, _return_value=error)
+            _record_failure(self.launcher, idx, self.overrides[idx], error)
+        self.feed(self.pool.replace(w))
+
+    def write_table(self) -> None:
+        self.table_at = time.monotonic()
+        try:
+            from zrp_ga import hydra_callbacks
+        except ImportError:
+            return
+        if (self.sweep / hydra_callbacks.MANIFEST).exists():
+            hydra_callbacks.write_table(self.sweep)
+
+
+def _record_failure(launcher: Any, idx: int, overrides: list[str], error: Exception) -> None:
+    """The manifest line of a job whose worker died before it could write one."""
+    try:
+        from zrp_ga import hydra_callbacks
+    except ImportError:
+        return
+    config = launcher.hydra_context.config_loader.load_sweep_config(launcher.config, overrides)
+    with open_dict(config):
+        config.hydra.job.id, config.hydra.job.num = idx, idx
+    saved = HydraConfig.instance().cfg
+    HydraConfig.instance().set_config(config)
+    try:
+        hydra_callbacks.record("failed", f"{type(error).__name__}: {error}")
+    finally:
+        HydraConfig.instance().cfg = saved

@@ -1,0 +1,65 @@
+"""zrp_ga's Hydra launcher: ``zrp-ga -m ... hydra/launcher=zrp_ga`` (``hydra/launcher=local``: the
+same on every core).
+
+Long-lived worker processes, started once per sweep, import the app and load its compiled code
+once (forked from the sweep's process after it warmed up, where processes can be forked), then
+take jobs a batch at a time and run each with Hydra's ``run_job``: its own output directory,
+``.hydra`` config record, log file, callbacks (the manifest line) and return value, as with
+Hydra's basic or joblib launcher. Job configs are composed from a few of Hydra's compositions
+(``_compose.py``, equal to Hydra's own).
+
+This module is imported by Hydra's plugin discovery at every start of every Hydra app, so it
+imports nothing heavy; the work is in ``_workers`` and ``_compose`` (not scanned: names with
+a leading underscore).
+"""
+
+# No "from __future__ import annotations": Hydra's plugin scan executes this module before it is
+# in sys.modules, where dataclasses look up string annotations.
+import dataclasses
+from typing import Any, Optional, Sequence
+
+from hydra.core.config_store import ConfigStore
+from hydra.core.utils import JobReturn
+from hydra.plugins.launcher import Launcher
+from hydra.types import HydraContext, TaskFunction
+from omegaconf import DictConfig
+
+
+@dataclasses.dataclass
+class ZrpGaLauncherConf:
+    _target_: str = "hydra_plugins.zrp_ga_launcher.launcher.ZrpGaLauncher"
+    n_jobs: int = -1  # worker processes; -1: one per core this process may use
+    batch_size: int = 1  # jobs handed to a worker at a time (it holds two batches, so it never waits)
+    start_method: Optional[str] = None  # multiprocessing's: null is fork on Linux, spawn elsewhere
+    cached_composition: bool = True  # job configs from a few of Hydra's compositions (equal to Hydra's)
+    warm_up: Optional[str] = "zrp_ga.app.warm_up"  # called with the sweep's config before the first job
+    table_every_s: float = 1.0  # manifest.csv rewritten at most this often (and at the end)
+
+
+ConfigStore.instance().store(group="hydra/launcher", name="zrp_ga", node=ZrpGaLauncherConf, provider="zrp_ga")
+
+
+class ZrpGaLauncher(Launcher):
+    """See the module docstring; settings in :class:`ZrpGaLauncherConf`."""
+
+    def __init__(self, **settings: Any) -> None:
+        self.settings = ZrpGaLauncherConf(**{k: v for k, v in settings.items() if k != "_target_"})
+        self.config: Optional[DictConfig] = None
+        self.task_function: Optional[TaskFunction] = None
+        self.hydra_context: Optional[HydraContext] = None
+        self.pool: Any = None
+
+    def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig) -> None:
+        from . import _compose, _workers
+
+        # The sweeper checks every job with this same loader before launching: one cache for both.
+        hydra_context.config_loader = _compose.ComposingLoader.wrap(
+            hydra_context.config_loader, self.settings.cached_composition
+        )
+        self.config, self.task_function, self.hydra_context = config, task_function, hydra_context
+        self.pool = _workers.Pool(self.settings, hydra_context, task_function, config)
+
+    def launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> Sequence[JobReturn]:
+        from . import _workers
+
+        return _workers.launch(self, job_overrides, initial_job_idx)

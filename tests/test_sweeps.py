@@ -1,0 +1,342 @@
+"""zrp_ga's launcher and sweeps that survive their own death.
+
+- Job configs composed by ``hydra_plugins.zrp_ga_launcher._compose`` against Hydra's own
+  composition of the same job: YAML text, and every node's type, key and flags.
+- A sweep on the launcher's workers against the same sweep on Hydra's basic launcher: every
+  file a run writes (wall-clock figures aside), the ``.hydra`` records, the manifest.
+- Sweeps killed (SIGKILL to every process, as a reboot; SIGINT, as Ctrl-C; SIGTERM, as a job
+  limit) at seeded random moments and started again with the same command, against the same
+  sweep run uninterrupted:
+  every run's convergence.csv (wall-clock columns aside), the manifest's states, and the
+  runs ``zrp_ga.report.find_runs`` sees.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from omegaconf import DictConfig, ListConfig, OmegaConf
+
+from zrp_ga import hydra_callbacks
+from zrp_ga.callbacks import WALL_CLOCK_COLUMNS
+from zrp_ga.hydra_callbacks import read_manifest
+
+
+# --- composition ------------------------------------------------------------------------------------
+def _nodes(node, path="") -> list[tuple]:
+    """Every node of a config: path, node class, key, reference and object type, own flags."""
+    meta = node._metadata
+    out = [(path, type(node).__name__, meta.key, str(meta.ref_type), str(getattr(meta, "object_type", None)),
+            sorted(meta.flags.items()))]  # fmt: skip
+    if isinstance(node, DictConfig) and not (node._is_missing() or node._is_none()):
+        for k in node.keys():
+            out += _nodes(node._get_node(k), f"{path}.{k}")
+    elif isinstance(node, ListConfig) and not (node._is_missing() or node._is_none()):
+        for i in range(len(node)):
+            out += _nodes(node._get_node(i), f"{path}[{i}]")
+    return out
+
+
+@pytest.fixture(scope="module")
+def hydra_loader():
+    from hydra import initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+
+    from zrp_ga import config
+
+    config.register()
+    with initialize_config_module("zrp_ga.conf", version_base="1.3"):
+        yield GlobalHydra.instance().hydra.config_loader
+
+
+def _compare_with_hydra(loader, master_overrides: list[str], jobs: list[list[str]]) -> int:
+    """Compose ``jobs`` with the cached loader and with Hydra's; assert equal; Hydra's count."""
+    from hydra.types import RunMode
+
+    from hydra_plugins.zrp_ga_launcher._compose import ComposingLoader
+
+    master = loader.load_configuration("config", master_overrides + ["hydra.mode=MULTIRUN"], RunMode.MULTIRUN)
+    cached = ComposingLoader.wrap(loader)
+    for job in jobs:
+        ours, theirs = cached.load_sweep_config(master, job), loader.load_sweep_config(master, job)
+        assert OmegaConf.to_yaml(ours) == OmegaConf.to_yaml(theirs), job
+        assert _nodes(ours) == _nodes(theirs), job
+    return cached.hydra_compositions
+
+
+def test_cached_compositions_equal_hydras_own(hydra_loader):
+    """Values, options of groups with schemas and nested defaults (problem, algorithm), an
+    experiment writing into a swept group's package, values of two types for one key."""
+    jobs = [[f"problem={p}", f"crossover={c}", f"mutation={m}", f"seed={s}", "experiment=methods_ga"]
+            for p, c, m, s in [("paper", "one_point", "polynomial", 0), ("paper", "one_point", "polynomial", 1),
+                               ("multipose", "sbx", "gaussian", 2), ("paper", "sbx", "polynomial", 3)]]  # fmt: skip
+    jobs += [["algorithm=cmaes", "problem.seed=null"], ["algorithm=lm", "problem.seed=3"], ["algorithm=lm", "problem.seed=null"]]
+    # Hydra's compositions: the first job, its three groups changed one at a time (the fourth job
+    # needs none of its own); the first of each shape and type of values (problem.seed null or
+    # an int), and lm with the null seed as a group changed: 7 for 7 jobs, but not one per job.
+    assert _compare_with_hydra(hydra_loader, [], jobs) == 1 + 3 + 2 + 1
+
+
+def test_options_that_write_outside_their_package_are_composed_by_hydra(hydra_loader):
+    """An experiment is a ``_global_`` package: each of its options is Hydra's composition."""
+    jobs = [[f"experiment={e}", f"seed={s}"] for e in ("paper_case", "methods_ga") for s in (0, 1)]
+    assert _compare_with_hydra(hydra_loader, [], jobs) == 2
+
+
+@pytest.mark.parametrize("overrides", [["seed=3"], ["problem=multipose", "crossover=sbx", "hydra.job.chdir=false"],
+                                       ["experiment=operator_grid"], ["-m"], ["seed=1,2"]], ids=str)
+def test_a_run_composes_its_config_once_to_hydras_own(hydra_loader, overrides):
+    """As ``hydra.main`` does: the mode first, then the config to run (mode MULTIRUN: an
+    experiment that sets it, or ``-m``), once with the first composition kept, once by Hydra."""
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.types import RunMode
+
+    from hydra_plugins.zrp_ga_launcher._compose import compose_once
+
+    hydra, multirun = GlobalHydra.instance().hydra, overrides == ["-m"] or "seed=1,2" in overrides
+    overrides = [o for o in overrides if o != "-m"]
+    calls = []
+    load = hydra.config_loader.load_configuration
+    hydra.config_loader.load_configuration = lambda *a, **k: calls.append(1) or load(*a, **k)
+    try:
+        with compose_once():
+            mode = hydra.get_mode("config", list(overrides))
+            mode = mode or (RunMode.MULTIRUN if multirun else RunMode.RUN)
+            lines = overrides + ([f"hydra.mode={mode.name}"] if "experiment=operator_grid" not in overrides else [])
+            ours = hydra.compose_config("config", lines, run_mode=mode, with_log_configuration=True)
+    finally:
+        hydra.config_loader.load_configuration = load
+    assert len(calls) == 1
+    theirs = hydra.compose_config("config", lines, run_mode=mode)
+    assert OmegaConf.to_yaml(ours) == OmegaConf.to_yaml(theirs)
+    assert _nodes(ours) == _nodes(theirs)
+
+
+@pytest.mark.slow
+def test_cached_compositions_of_the_whole_operator_grid_equal_hydras_own(hydra_loader):
+    grid = itertools.product(["one_point", "two_point", "blend", "sbx"], ["gaussian", "polynomial", "uniform_reset"],
+                             ["none", "segment"], ["none", "segment"], range(3))  # fmt: skip
+    jobs = [[f"crossover={c}", f"mutation={m}", f"inversion={i}", f"rotation={r}", f"seed={s}", "experiment=operator_grid"]
+            for c, m, i, r, s in grid]  # fmt: skip
+    assert _compare_with_hydra(hydra_loader, ["experiment=operator_grid"], jobs) == 8
+
+
+# --- sweeps on the launcher -------------------------------------------------------------------------
+SMALL = ["problem=multipose", "problem.n_poses=10", "problem.n_validation=10", "refine=none", "population.mu=30",
+         "population.lambda_=30"]  # fmt: skip
+
+
+def _zrp_ga(*args, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "zrp_ga.app", *args], capture_output=True, text=True, **kw)
+
+
+def _runs(sweep: Path) -> dict[str, pd.DataFrame]:
+    """Each job's convergence.csv without the wall-clock columns, by overrides."""
+    m = read_manifest(sweep)
+    return {o: pd.read_csv(sweep / str(d) / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS)
+            for o, d in zip(m["overrides"], m["dir"])}  # fmt: skip
+
+
+def _summary(run: Path) -> dict:
+    s = json.loads((run / "summary.json").read_text())
+    for key in ("wall_s", "versions"):
+        s.pop(key)
+    s["choices"].pop("hydra/launcher")
+    return s
+
+
+ARGS = ["-m", "seed=0,1", "crossover=sbx,blend", *SMALL, "population.generations=8", "checkpoint_every=3"]
+OURS = ["hydra/launcher=zrp_ga", "hydra.launcher.n_jobs=2"]
+
+
+@pytest.fixture(scope="module")
+def ours(tmp_path_factory) -> Path:
+    sweep = tmp_path_factory.mktemp("ours")
+    proc = _zrp_ga(*ARGS, *OURS, f"hydra.sweep.dir={sweep}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return sweep
+
+
+def test_launcher_writes_what_hydras_basic_launcher_writes(tmp_path, ours):
+    basic = _zrp_ga(*ARGS, f"hydra.sweep.dir={tmp_path / 'basic'}")
+    assert basic.returncode == 0, basic.stderr[-2000:]
+    mb, mo = read_manifest(tmp_path / "basic"), read_manifest(ours)
+    assert list(mo["status"]) == ["done"] * 4
+    pd.testing.assert_frame_equal(mb.drop(columns="time"), mo.drop(columns="time"))
+    assert pd.read_csv(ours / "manifest.csv")["status"].tolist() == ["done"] * 4
+    for d in mo["dir"]:
+        b, o = tmp_path / "basic" / str(d), ours / str(d)
+        for name in ("convergence.csv",):
+            pd.testing.assert_frame_equal(pd.read_csv(o / name).drop(columns=WALL_CLOCK_COLUMNS),
+                                          pd.read_csv(b / name).drop(columns=WALL_CLOCK_COLUMNS))  # fmt: skip
+        for name in ("best_params.csv", "initial_population.csv", ".hydra/config.yaml", ".hydra/overrides.yaml"):
+            assert (o / name).read_text() == (b / name).read_text(), name
+        assert _summary(o) == _summary(b)
+        hb, ho = (OmegaConf.load(x / ".hydra/hydra.yaml").hydra for x in (b, o))
+        for h in (hb, ho):  # what differs by design: the launcher and the sweep directory
+            h.launcher, h.sweep.dir, h.runtime.output_dir, h.overrides.hydra = None, None, None, None
+            h.runtime.choices.pop("hydra/launcher")
+        assert OmegaConf.to_yaml(ho) == OmegaConf.to_yaml(hb)
+        assert (o / "zrp-ga.log").read_text().count("job ") == 1
+
+
+def test_sweep_jobs_equal_single_runs_built_afresh(tmp_path, ours):
+    """A sweep's workers reuse problem instances and their diagnostics (kept beside the sweep):
+    each job's files against a single run of its config, built from nothing in this process."""
+    from zrp_ga import app, config
+
+    m = read_manifest(ours)
+    for overrides, d in zip(m["overrides"], m["dir"]):
+        single = tmp_path / str(d)
+        app.run(config.load(overrides.split()), single)
+        pd.testing.assert_frame_equal(pd.read_csv(ours / str(d) / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS),
+                                      pd.read_csv(single / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS))  # fmt: skip
+        swept, alone = (json.loads((x / "summary.json").read_text()) for x in (ours / str(d), single))
+        assert swept["identifiability"] == alone["identifiability"] and swept["best_genome"] == alone["best_genome"]
+    assert len(list((ours / ".zrp_ga").glob("diagnostics-*.json"))) == 2  # one per problem instance (seed)
+
+
+def test_warm_up_builds_the_base_instance_and_writes_nothing(tmp_path, monkeypatch):
+    from zrp_ga import app, config
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(app, "_instances", {})
+    app.warm_up(config.load(SMALL + ["seed=5"], return_hydra_config=True))
+    assert [json.loads(k)["seed"] for k in app._instances] == [5]
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_sweep_run_again_keeps_its_finished_jobs_and_refuses_another_config(tmp_path, ours):
+    sweep = tmp_path / "sweep"
+    shutil.copytree(ours, sweep)
+    args = [*ARGS, *OURS, f"hydra.sweep.dir={sweep}"]
+    before = {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")}
+    again = _zrp_ga(*args)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")} == before  # kept, not run again
+    assert (again.stdout + again.stderr).count("finished before; kept") == 4
+    other = _zrp_ga(*args[:-1], "population.generations=6", args[-1])
+    assert other.returncode != 0
+    m = read_manifest(sweep)
+    assert list(m["status"]) == ["failed"] * 4
+    assert "holds a run of another config (population.generations differs)" in m.loc[0, "error"]
+    assert {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")} == before
+
+
+def test_manifest_survives_a_line_cut_by_a_crash(tmp_path):
+    (tmp_path / "manifest.jsonl").write_text('{"job": 0, "status": "done", "dir": "0"}\n{"job": 1, "sta')
+    hydra_callbacks.repair(tmp_path)
+    hydra_callbacks._append(tmp_path / "manifest.jsonl", {"job": 2, "status": "done", "dir": "2"})
+    assert [s["job"] for s in hydra_callbacks.job_states(tmp_path)] == [0, 2]
+
+
+# --- killed and started again -----------------------------------------------------------------------
+KILLABLE = ["-m", "seed=0,1,2,3", *SMALL, "population.generations=150", "checkpoint_every=2", "hydra/launcher=zrp_ga",
+            "hydra.launcher.n_jobs=2"]  # fmt: skip
+N_KILLABLE = 4
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory) -> Path:
+    sweep = tmp_path_factory.mktemp("whole")
+    proc = _zrp_ga(*KILLABLE, f"hydra.sweep.dir={sweep}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return sweep
+
+
+def _kill_at_random(sweep: Path, sig: int, rng: random.Random) -> subprocess.Popen:
+    """Start the sweep and send ``sig`` to all its processes (its own session) once a random
+    number of generations has been logged over its jobs, plus a random delay."""
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *KILLABLE, f"hydra.sweep.dir={sweep}"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)  # fmt: skip
+    target, deadline = rng.randrange(1, N_KILLABLE * 151), time.time() + 120
+    while proc.poll() is None and time.time() < deadline:
+        if sum(p.read_bytes().count(b"\n") - 1 for p in sweep.glob("*/convergence.csv")) >= target:
+            break
+        time.sleep(0.002)
+    time.sleep(rng.uniform(0, 0.05))
+    if proc.poll() is None:
+        os.killpg(proc.pid, sig)
+    proc.wait(timeout=120)
+    return proc
+
+
+def _check_same_as(sweep: Path, whole: Path) -> None:
+    from zrp_ga import report
+
+    ours, theirs = _runs(sweep), _runs(whole)
+    assert sorted(ours) == sorted(theirs)
+    for overrides, frame in theirs.items():
+        pd.testing.assert_frame_equal(ours[overrides], frame, obj=overrides)
+    m, w = read_manifest(sweep), read_manifest(whole)
+    pd.testing.assert_frame_equal(m[["job", "overrides", "dir", "status"]], w[["job", "overrides", "dir", "status"]])
+    assert pd.read_csv(sweep / "manifest.csv")["status"].tolist() == ["done"] * len(w)
+    runs, skipped = report.find_runs([sweep])
+    assert len(runs) == len(w) and not skipped
+
+
+def _kill_and_continue(tmp_path: Path, whole: Path, sig: int, seed: int) -> None:
+    sweep = tmp_path / f"cut-{seed}"
+    proc = _kill_at_random(sweep, sig, random.Random(seed))
+    assert proc.returncode != 0, "the sweep ended before it was interrupted"
+    if sig != signal.SIGKILL:  # Ctrl-C, or a job limit's SIGTERM: a one-line hint, no traceback
+        err = proc.stderr.read().decode()
+        assert proc.returncode == 130 and "continue with the same command" in err and "Traceback" not in err, err
+    again = _zrp_ga(*KILLABLE, f"hydra.sweep.dir={sweep}")
+    assert again.returncode == 0, again.stderr[-3000:]
+    _check_same_as(sweep, whole)
+
+
+def test_a_killed_sweep_started_again_ends_as_an_uninterrupted_one(tmp_path, uninterrupted):
+    _kill_and_continue(tmp_path, uninterrupted, signal.SIGKILL, seed=1)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT, signal.SIGTERM], ids=["SIGKILL", "SIGINT", "SIGTERM"])
+def test_sweeps_killed_at_random_moments_end_as_an_uninterrupted_one(tmp_path, uninterrupted, sig, seed):
+    _kill_and_continue(tmp_path, uninterrupted, sig, seed)
+
+
+@pytest.mark.slow
+def test_a_worker_that_dies_fails_its_jobs_and_the_sweep_goes_on(tmp_path, uninterrupted):
+    """One worker process killed (as by the out-of-memory killer): its jobs are failed and
+    recorded, another worker runs the rest; the same command then completes the sweep."""
+    sweep = tmp_path / "sweep"
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *KILLABLE, f"hydra.sweep.dir={sweep}"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)  # fmt: skip
+    deadline = time.time() + 120
+    while time.time() < deadline and not any(p.stat().st_size > 2000 for p in sweep.glob("*/convergence.csv")):
+        time.sleep(0.01)
+    children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
+    os.kill(int(children[0]), signal.SIGKILL)
+    assert proc.wait(timeout=300) != 0  # Hydra's sweeper reports the failed jobs
+    m = read_manifest(sweep)
+    failed = m[m["status"] == "failed"]
+    assert len(failed) >= 1 and failed["error"].str.contains("worker process running this job died").all()
+    assert set(m["status"]) == {"done", "failed"} and len(m) == N_KILLABLE
+    again = _zrp_ga(*KILLABLE, f"hydra.sweep.dir={sweep}")
+    assert again.returncode == 0, again.stderr[-3000:]
+    _check_same_as(sweep, uninterrupted)
+
+
+@pytest.mark.slow
+def test_spawned_workers_write_what_forked_ones_write(tmp_path, ours):
+    """start_method=spawn (the default where fork is unsafe: macOS, Windows)."""
+    proc = _zrp_ga(*ARGS, *OURS, "hydra.launcher.start_method=spawn", f"hydra.sweep.dir={tmp_path}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    spawned, forked = _runs(tmp_path), _runs(ours)
+    assert sorted(spawned) == sorted(forked)
+    for overrides, frame in forked.items():
+        pd.testing.assert_frame_equal(spawned[overrides], frame)
