@@ -82,16 +82,34 @@ def warnings(task: Task, result: Result, nominal_cost: float, val: dict[str, flo
     return out
 
 
-def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wall_s: float) -> tuple[dict, np.ndarray]:
-    """``summary.json``'s content and the reported genome (gauge-fixed for the nonlinear cost)."""
-    from hydra.core.hydra_config import HydraConfig
-
+def judged(task: Task, result: Result) -> tuple[dict, np.ndarray]:
+    """The reported genome (gauge-fixed for the nonlinear cost) and ``summary.json``'s entries
+    that judge it: nominal cost, validation error and parameter error of the nominal and the
+    calibrated arm, warnings, the genome by name. A problem kind whose genomes are not
+    parameter errors judges its own (``task.judged(result)``, e.g. zrp_ga.problems.selection)."""
+    if hasattr(task, "judged"):
+        return task.judged(result)
     p, judge = task.problem, task.judge
     x = error_model.canonical(p.layout, p.nominal, result.x) if p.cost is Cost.nonlinear else result.x
     zero = np.zeros(p.layout.size)
     nominal_cost = float(p.costs(zero)[0])
     before, after = judge.validation_errors(zero), judge.validation_errors(x)
     val_rms = {"nominal": float(before[0][0]) * 1e3, "calibrated": float(after[0][0]) * 1e3}
+    return {
+        "nominal_cost": nominal_cost,
+        "validation_rms_mm": val_rms,
+        "validation_max_mm": {"nominal": float(before[1][0]) * 1e3, "calibrated": float(after[1][0]) * 1e3},
+        "param_err": {"nominal": float(judge.param_error(zero)[0]), "calibrated": float(judge.param_error(x)[0])},
+        "warnings": warnings(task, result, nominal_cost, val_rms),
+        "best_genome": dict(zip(p.names, x.tolist())),
+    }, x
+
+
+def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wall_s: float) -> tuple[dict, np.ndarray]:
+    """``summary.json``'s content and the reported genome (:func:`judged`)."""
+    from hydra.core.hydra_config import HydraConfig
+
+    j, x = judged(task, result)
     initial = result.initial_costs[np.isfinite(result.initial_costs)]
     initial_best = float(initial.min()) if initial.size else float("nan")
     summary = {
@@ -101,19 +119,19 @@ def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wa
         "seed": int(cfg.seed),
         "final_cost": result.cost,
         "initial_cost": initial_best,
-        "nominal_cost": nominal_cost,
+        "nominal_cost": j["nominal_cost"],
         "final_over_initial": result.cost / initial_best,
         "nevals": result.nevals,
         "stop_reason": result.stop_reason,
         "wall_s": wall_s,
-        "validation_rms_mm": val_rms,
-        "validation_max_mm": {"nominal": float(before[1][0]) * 1e3, "calibrated": float(after[1][0]) * 1e3},
-        "param_err": {"nominal": float(judge.param_error(zero)[0]), "calibrated": float(judge.param_error(x)[0])},
+        "validation_rms_mm": j["validation_rms_mm"],
+        "validation_max_mm": j["validation_max_mm"],
+        "param_err": j["param_err"],
         "identifiability": diagnostics,
         "robot": {"name": task.robot.name, "joints": task.robot.n, "joint_types": task.robot.joint_types},
         "problem": task.info,
-        "warnings": warnings(task, result, nominal_cost, val_rms),
-        "best_genome": dict(zip(p.names, x.tolist())),
+        "warnings": j["warnings"],
+        "best_genome": j["best_genome"],
         **task.report(x),
         "config": resolved,
         "versions": records.versions(),
@@ -124,10 +142,14 @@ def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wa
 def write(out: Path, task: Task, result: Result, summary: dict, x: np.ndarray) -> None:
     """The run's files after the optimisation; each warning also on the console."""
     p = task.problem
-    truth = task.truth
-    if truth is not None and p.cost is Cost.nonlinear:
-        truth = error_model.canonical(p.layout, p.nominal, truth)
-    records.write_csv(out / "best_params.csv", records.params_by_joint(p.layout, x, truth))
+    if hasattr(task, "params_table"):  # a problem kind whose genomes are not parameter errors
+        params = task.params_table(x)
+    else:
+        truth = task.truth
+        if truth is not None and p.cost is Cost.nonlinear:
+            truth = error_model.canonical(p.layout, p.nominal, truth)
+        params = records.params_by_joint(p.layout, x, truth)
+    records.write_csv(out / "best_params.csv", params)
     records.write_csv(out / "initial_population.csv", records.population_table(p.names, result.initial_x, result.initial_costs))
     task.write(out, x)
     records.write_json(out / "summary.json", summary)
