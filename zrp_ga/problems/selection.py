@@ -5,7 +5,7 @@ The candidates are joint configurations sampled within the arm's limits and meas
 simulated true arm, or the rows of a measurement file. A genome is k distinct candidate
 indices; its cost is an observability index of the scaled error Jacobian of the identifiable
 parameters (:mod:`zrp_ga.observability`, docs/model.md section 6), computed for a whole
-population from precomputed per-pose information blocks. The GA finds subsets through the
+population from precomputed per-pose Jacobian blocks. The GA finds subsets through the
 problem's ``sample`` and ``repair`` hooks and the subset operators
 (:mod:`zrp_ga.operators.subset`); the baselines are :mod:`zrp_ga.algorithms.subsets`.
 
@@ -67,8 +67,8 @@ class SelectionProblem:
         rows = observability.scaled_pose_rows(c.nominal, c.data.q, c.layout, c.data.position_only, self.length_m,
                                               c.orientation_weight, c.data.weights)  # fmt: skip
         self.basis = observability.identifiable_basis(rows, self.rcond)  # (K, m)
-        self.blocks = observability.information_blocks(rows, self.basis)  # (N, m, m)
-        self.ridge_information = self.ridge * np.trace(self.blocks.sum(axis=0)) / (N * self.m)
+        self.blocks = observability.reduced_rows(rows, self.basis)  # (N, r, m)
+        self.ridge_information = self.ridge * np.sum(self.blocks**2) / (N * self.m)  # trace of sum A_c / (N m)
         self.lower, self.upper = np.zeros(k), np.full(k, N - 1.0)
         self.gene_blocks = [(0, k)]  # one block: the GA's block-wise operators act on the whole genome
 
@@ -108,7 +108,8 @@ class SelectionProblem:
 
     def costs(self, X: ArrayLike) -> Array:
         """The cost (P,) of every subset of X (P, w): ``1 / O`` for O1-O4, A for A-optimality."""
-        return observability.index_cost(self.indices(X), self.index.value)
+        X = np.atleast_2d(X)
+        return observability.index_cost(self.information(X), X.shape[1], self.index.value)
 
     # --- the GA's hooks for a combinatorial genome -------------------------------------------
     def sample(self, rng: np.random.Generator, size: int) -> Array:
