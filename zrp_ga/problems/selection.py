@@ -179,6 +179,15 @@ class SelectionTask(Task):
             self._judged[key] = judge(self.calibrate_on(rows))
         return self._judged[key]
 
+    def candidates_rms_m(self, x: ArrayLike) -> float:
+        """RMS position error (m) over all candidates of the calibration on the poses of ``x``:
+        how it does on the poses it could have used (with a validation set from elsewhere,
+        the difference tells a shift between the two sets from a poor calibration)."""
+        j = self.judgement(x)
+        p = j.task.problem
+        err = metrics.position_errors(p.layout, p.nominal, j.x, self.problem.data)
+        return float(np.sqrt(np.mean(err**2)))
+
     def calibrated_robot(self, x: ArrayLike) -> ZRPRobot:
         """The arm calibrated on the poses of genome ``x``."""
         j = self.judgement(x)
@@ -220,7 +229,7 @@ class SelectionTask(Task):
         out = {"k": p.k, "index": p.index.value, "candidates": p.n_candidates, "identifiable_directions": p.m,
                "identified_directions": self.identified(x), "length_scale_m": p.length_m,
                "poses": x.tolist(), "lines": self.candidates.lines[x].tolist(), "indices": values,
-               "calibration": _entry(self.judgement(x))}  # fmt: skip
+               "calibration": {**_entry(self.judgement(x)), "candidates_rms_mm": self.candidates_rms_m(x) * 1e3}}  # fmt: skip
         if self.reference:
             every = np.arange(p.n_candidates)
             out["all_candidates"] = {"indices": {k: float(v[0]) for k, v in p.indices(every[None]).items()},
