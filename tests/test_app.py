@@ -147,7 +147,7 @@ def test_info_defaults_and_help(tmp_path):
     proc = _zrp_ga("--help", cwd=tmp_path)
     assert proc.returncode == 0
     assert proc.stdout.startswith("zrp-ga: calibrate the kinematic parameters")
-    for group in ("crossover: blend, none, one_point, sbx, two_point, uniform", "robot: file, puma560, stanford, ur10"):
+    for group in ("crossover: blend, none, one_point, sbx, subset, two_point, uniform", "robot: file, puma560, stanford, ur10"):
         assert group in proc.stdout
     assert "convergence.csv" in proc.stdout and "app" not in proc.stdout.split()
 

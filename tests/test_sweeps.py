@@ -48,8 +48,10 @@ def _nodes(node, path="") -> list[tuple]:
     return out
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def hydra_loader():
+    """Hydra's config loader, initialised for one test (a longer-lived one would leave Hydra
+    initialised for the tests after it, which then cannot load configs)."""
     from hydra import initialize_config_module
     from hydra.core.global_hydra import GlobalHydra
 

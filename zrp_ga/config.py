@@ -60,6 +60,16 @@ class Format(enum.Enum):
     ur10_ipa = "ur10_ipa"  # the UR10 laser-tracker files of Landgraf et al.
 
 
+class Index(enum.Enum):
+    """Observability indices for pose selection (docs/model.md, section 6; zrp_ga.observability)."""
+
+    O1 = "O1"  # D-optimality: (s_1 ... s_m)^(1/m) / sqrt(M)
+    O2 = "O2"  # inverse condition number s_m / s_1
+    O3 = "O3"  # minimum singular value s_m
+    O4 = "O4"  # noise amplification index s_m^2 / s_1
+    A = "A"  # A-optimality: trace(G^-1)
+
+
 def _require(ok: bool, key: str, what: str, value: Any) -> None:
     if not ok:
         raise ConfigError(f"{key}: must be {what}, got {value}")
@@ -145,6 +155,19 @@ class CMAESConf:
     _target_: str = "zrp_ga.algorithms.cmaes.CMAES"
     population: Any = "${population}"  # lambda_: CMA-ES's population size; generations, max_evals: its budget
     sigma0: float = 0.3  # initial standard deviation, as a fraction of each gene's range
+
+
+@dataclasses.dataclass
+class RandomSearchConf:
+    _target_: str = "zrp_ga.algorithms.random_search.RandomSearch"
+    samples: int = 1  # random genomes (pose selection: subsets) drawn; the best is kept (1: a random choice)
+    batch: int = 100  # genomes per row of convergence.csv
+
+
+@dataclasses.dataclass
+class ExchangeConf:
+    _target_: str = "zrp_ga.algorithms.exchange.Exchange"
+    max_evals: Optional[int] = None  # cap on index evaluations (null: until no exchange improves)
 
 
 # --- problems and robots -------------------------------------------------------------------------
@@ -244,6 +267,48 @@ class MeasuredConf(ProblemConf):
 
 
 @dataclasses.dataclass
+class PoseSelectionConf(MeasuredConf):
+    """Pose selection (zrp_ga.problems.selection): choose ``k`` of the candidate poses to
+    optimise an observability index. The candidates are simulated (``n_candidates`` joint
+    configurations within the arm's limits, measured on a true arm drawn as in SimulatedConf)
+    unless ``calibration_file`` is given: then they are its rows (MeasuredConf's keys), and the
+    validation poses those of ``validation_file`` (or ``validation_fraction`` of the file). The
+    ProblemConf keys describe the calibration (LM) that judges the chosen poses at the end."""
+
+    _target_: str = "zrp_ga.problems.selection.build"
+    k: int = 30  # poses to choose
+    index: Index = Index.O1  # what the choice optimises; the cost is 1/O1 .. 1/O4, or A
+    length_scale: Optional[float] = None  # m, scales angle parameters (null: the arm's summed body-vector lengths)
+    rcond: float = 1e-4  # directions seen below rcond x the best-seen one (over all candidates) are left out
+    ridge: float = 1e-6  # added to the information matrix, x the mean eigenvalue of one candidate's information
+    reference: bool = True  # also calibrate on all candidates, for comparison (summary.json)
+    cost: Cost = Cost.nonlinear
+    n_candidates: int = 500  # simulated candidates
+    n_validation: int = 200  # simulated validation poses, never candidates
+    joint_noise: float = 0.001
+    position_noise: float = 0.0
+    orientation_noise: float = 0.0
+    position_only: bool = False
+    seed: Optional[int] = None  # the simulated instance's seed (null: the run's seed)
+
+    def check(self, key: str = "problem") -> None:
+        ProblemConf.check(self, key)  # MeasuredConf's check wants a file; here it is optional
+        _require(self.k >= 1, f"{key}.k", "at least 1", self.k)
+        _require(0.0 < self.rcond < 1.0, f"{key}.rcond", "in (0, 1)", self.rcond)
+        _require(math.isfinite(self.ridge) and self.ridge >= 0.0, f"{key}.ridge", "a number >= 0", self.ridge)
+        s = self.length_scale
+        _require(s is None or (math.isfinite(s) and s > 0.0), f"{key}.length_scale", "a length > 0 (m) or null", s)
+        f = self.validation_fraction
+        _require(f is None or 0.0 < f < 1.0, f"{key}.validation_fraction", "in (0, 1) or null", f)
+        if not self.calibration_file:
+            _require(self.n_candidates > self.k, f"{key}.n_candidates", f"more than problem.k = {self.k}", self.n_candidates)
+            _require(self.n_validation >= 1, f"{key}.n_validation", "at least 1", self.n_validation)
+        for name in ("joint_noise", "position_noise", "orientation_noise"):
+            value = getattr(self, name)
+            _require(math.isfinite(value) and value >= 0, f"{key}.{name}", "a number >= 0", value)
+
+
+@dataclasses.dataclass
 class RobotConf:
     _target_: str = "zrp_ga.robots.load"
     name: Optional[str] = "puma560"  # a preset
@@ -274,7 +339,9 @@ class Config:
 # Stored at the root of the config tree, not in a group, so that they are no options of their own
 # (a group option extends one with ``- /ga_schema@_here_`` in its defaults list).
 SCHEMAS = {"config_schema": Config, "ga_schema": GAConf, "lm_schema": LMConf, "cmaes_schema": CMAESConf,
-           "simulated_schema": SimulatedConf, "measured_schema": MeasuredConf}  # fmt: skip
+           "simulated_schema": SimulatedConf, "measured_schema": MeasuredConf,
+           "pose_selection_schema": PoseSelectionConf, "random_search_schema": RandomSearchConf,
+           "exchange_schema": ExchangeConf}  # fmt: skip
 
 
 def register() -> None:

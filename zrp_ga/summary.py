@@ -172,10 +172,15 @@ def warnings(task: Task, result: Result, nominal_cost: float, val: dict[str, flo
     return out
 
 
-def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wall_s: float) -> tuple[dict, np.ndarray]:
-    """``summary.json``'s content and the reported genome (gauge-fixed for the nonlinear cost)."""
-    from hydra.core.hydra_config import HydraConfig
-
+def judged(task: Task, result: Result) -> tuple[dict, np.ndarray]:
+    """The reported genome and ``summary.json``'s entries that judge it: final cost (the
+    nominal arm's when it is returned instead, :func:`worse_than_nominal`), nominal cost,
+    validation error and parameter error of the nominal and the calibrated arm, warnings, the
+    genome by name. The genome is gauge-fixed for the nonlinear cost. A problem kind whose
+    genomes are not parameter errors judges its own (``task.judged(result)``, e.g.
+    zrp_ga.problems.selection)."""
+    if hasattr(task, "judged"):
+        return task.judged(result)
     p, judge = task.problem, task.judge
     zero = np.zeros(p.layout.size)
     nominal_cost = float(p.costs(zero)[0])
@@ -185,6 +190,24 @@ def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wa
     x, final_cost = (zero, nominal_cost) if returned == "nominal" else (found, result.cost)
     before, after = judge.validation_errors(zero), judge.validation_errors(x)
     val_rms = {"nominal": float(before[0][0]) * 1e3, "calibrated": float(after[0][0]) * 1e3}
+    return {
+        "final_cost": final_cost,
+        "optimiser_cost": result.cost,
+        "returned": returned,
+        "nominal_cost": nominal_cost,
+        "validation_rms_mm": val_rms,
+        "validation_max_mm": {"nominal": float(before[1][0]) * 1e3, "calibrated": float(after[1][0]) * 1e3},
+        "param_err": {"nominal": float(judge.param_error(zero)[0]), "calibrated": float(judge.param_error(x)[0])},
+        "warnings": warnings(task, result, nominal_cost, val_rms, returned, found),
+        "best_genome": dict(zip(p.names, x.tolist())),
+    }, x
+
+
+def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wall_s: float) -> tuple[dict, np.ndarray]:
+    """``summary.json``'s content and the reported genome (:func:`judged`)."""
+    from hydra.core.hydra_config import HydraConfig
+
+    j, x = judged(task, result)
     initial = result.initial_costs[np.isfinite(result.initial_costs)]
     initial_best = float(initial.min()) if initial.size else float("nan")
     robot = task.robot
@@ -193,24 +216,24 @@ def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wa
         "algorithm": resolved["algorithm"]["_target_"].rsplit(".", 1)[-1].lower(),
         "choices": dict(HydraConfig.get().runtime.choices) if HydraConfig.initialized() else {},
         "seed": int(cfg.seed),
-        "final_cost": final_cost,
-        "optimiser_cost": result.cost,
-        "returned": returned,
+        "final_cost": j["final_cost"],
+        "optimiser_cost": j["optimiser_cost"],
+        "returned": j["returned"],
         "initial_cost": initial_best,
-        "nominal_cost": nominal_cost,
-        "final_over_initial": final_cost / initial_best,
+        "nominal_cost": j["nominal_cost"],
+        "final_over_initial": j["final_cost"] / initial_best,
         "nevals": result.nevals,
         "stop_reason": result.stop_reason,
         "wall_s": wall_s,
-        "validation_rms_mm": val_rms,
-        "validation_max_mm": {"nominal": float(before[1][0]) * 1e3, "calibrated": float(after[1][0]) * 1e3},
-        "param_err": {"nominal": float(judge.param_error(zero)[0]), "calibrated": float(judge.param_error(x)[0])},
+        "validation_rms_mm": j["validation_rms_mm"],
+        "validation_max_mm": j["validation_max_mm"],
+        "param_err": j["param_err"],
         "identifiability": diagnostics,
         "robot": {"name": robot.name, "joints": robot.n, "joint_types": robot.joint_types},
         "robot_model": robot.to_dict(),  # the arm as given (ZRP, before any registration)
         "problem": task.info,
-        "warnings": warnings(task, result, nominal_cost, val_rms, returned, found),
-        "best_genome": dict(zip(p.names, x.tolist())),
+        "warnings": j["warnings"],
+        "best_genome": j["best_genome"],
         **task.report(x),
         "config": resolved,
         "versions": records.versions(),
@@ -221,10 +244,14 @@ def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wa
 def write(out: Path, task: Task, result: Result, summary: dict, x: np.ndarray) -> None:
     """The run's files after the optimisation; each warning also on the console."""
     p = task.problem
-    truth = task.truth
-    if truth is not None and p.cost is Cost.nonlinear:
-        truth = error_model.canonical(p.layout, p.nominal, truth)
-    records.write_csv(out / "best_params.csv", records.params_by_joint(p.layout, x, truth))
+    if hasattr(task, "params_table"):  # a problem kind whose genomes are not parameter errors
+        params = task.params_table(x)
+    else:
+        truth = task.truth
+        if truth is not None and p.cost is Cost.nonlinear:
+            truth = error_model.canonical(p.layout, p.nominal, truth)
+        params = records.params_by_joint(p.layout, x, truth)
+    records.write_csv(out / "best_params.csv", params)
     records.write_csv(out / "initial_population.csv", records.population_table(p.names, result.initial_x, result.initial_costs))
     task.write(out, x)
     summary["calibrated_robot"] = write_robot(out, task, x)

@@ -82,9 +82,13 @@ class GA(Algorithm):
                 operators.target(node, key)  # the function exists and takes these parameters
 
     def setup(self, problem, rng: np.random.Generator) -> None:
-        """Bind the operators to the problem's ranges and blocks and register them."""
+        """Bind the operators to the problem's ranges and blocks and register them. A problem
+        whose genomes are not real-valued parameters may bring its own ``gene_blocks`` and
+        ``repair(X, rng)`` (and ``sample(rng, n)``, see :meth:`initialize`), e.g. the subsets
+        of :mod:`zrp_ga.problems.selection`; then its repair replaces ``algorithm.repair``."""
         super().setup(problem, rng)
-        tb, blocks = self.toolbox, [(s.start, s.stop) for s in problem.layout.blocks.values()]
+        tb = self.toolbox
+        blocks = getattr(problem, "gene_blocks", None) or [(s.start, s.stop) for s in problem.layout.blocks.values()]
         context = dict(low=problem.lower, up=problem.upper, blocks=blocks, problem=problem)
         tb.register("select", operators.build(self.selection.op, "selection.op", "selection", rng))
         families = [("mate", "crossover")] + list(UNARY)
@@ -95,13 +99,19 @@ class GA(Algorithm):
                 tb.register(alias, op)
         if self.refine_conf.share > 0 and self.refine_conf.op is not None:
             tb.register("refine", operators.build(self.refine_conf.op, "refine.op", "refine", rng, **context))
-        tb.register("repair", repair, low=problem.lower, up=problem.upper, method=self.repair)
+        if hasattr(problem, "repair"):
+            tb.register("repair", problem.repair, rng=rng)
+        else:
+            tb.register("repair", repair, low=problem.lower, up=problem.upper, method=self.repair)
         self.probs = np.array([self.variation[key].prob if hasattr(tb, alias) else 0.0 for alias, key in UNARY])
 
     def initialize(self) -> None:
-        """mu genomes uniform in the gene ranges, evaluated: generation 0."""
-        p = self.problem
-        self.pop = self.rng.uniform(p.lower, p.upper, size=(self.pop_conf.mu, p.lower.size))
+        """mu genomes uniform in the gene ranges (or the problem's ``sample(rng, mu)``), evaluated: generation 0."""
+        p, mu = self.problem, self.pop_conf.mu
+        if hasattr(self.toolbox, "refine") and not hasattr(p, "jacobian"):
+            raise ConfigError("refine: the pseudo-inverse step needs a calibration problem (its Jacobian); set refine=none "
+                              "(experiment=pose_selection does)")
+        self.pop = p.sample(self.rng, mu) if hasattr(p, "sample") else self.rng.uniform(p.lower, p.upper, size=(mu, p.lower.size))
         self.costs = self.toolbox.evaluate(self.pop)
         self.initial = (self.pop.copy(), self.costs.copy())
         self.nevals, self.n_nonfinite = self.pop_conf.mu, int(np.sum(~np.isfinite(self.costs)))

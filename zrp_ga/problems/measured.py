@@ -132,21 +132,25 @@ def measured_format(robot: ZRPRobot, c: MeasuredConf) -> measurements.Format:
 
 def build(robot: ZRPRobot, seed: int, **settings) -> MeasuredTask:
     """Read and split the measurement files of ``settings`` (``zrp_ga.config.MeasuredConf``'s
-    keys), then :func:`from_measurements`. The validation file is read in the units the
-    calibration file was found in."""
+    keys, :func:`read_sets`), then :func:`from_measurements`."""
     c: MeasuredConf = section(MeasuredConf, settings, "problem")
+    return from_measurements(robot, *read_sets(robot, seed, c), c)
+
+
+def read_sets(robot: ZRPRobot, seed: int, c: MeasuredConf) -> tuple[Measurements, Measurements | None]:
+    """The calibration and validation measurements of ``c`` (None: no validation): the files,
+    or the calibration file split at random. The validation file is read in the units the
+    calibration file was found in."""
     fmt = measured_format(robot, c)
     calib = measurements.read(data_path(c.calibration_file), fmt, robot, c.drop_bad_rows)
     if c.validation_file:
         length, joint = calib.units
         same = dataclasses.replace(fmt, length_unit=length, joint_unit=joint,
                                    angle_unit=joint if fmt.angle_unit == measurements.AUTO else fmt.angle_unit)  # fmt: skip
-        val = measurements.read(data_path(c.validation_file), same, robot, c.drop_bad_rows)
-    elif c.validation_fraction:
-        calib, val = measurements.split(calib, c.validation_fraction, np.random.default_rng([seed, 2]))
-    else:
-        val = None
-    return from_measurements(robot, calib, val, c)
+        return calib, measurements.read(data_path(c.validation_file), same, robot, c.drop_bad_rows)
+    if c.validation_fraction:
+        return measurements.split(calib, c.validation_fraction, np.random.default_rng([seed, 2]))
+    return calib, None
 
 
 def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | None, c: MeasuredConf) -> MeasuredTask:
