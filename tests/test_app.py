@@ -166,3 +166,36 @@ def test_a_users_own_config_directory(tmp_path):
         proc = _zrp_ga(*way, "robot=myarm", *common, f"hydra.run.dir={run_dir}")
         assert proc.returncode == 0, proc.stderr
         assert json.loads((run_dir / "summary.json").read_text())["robot"]["name"] == "myarm"
+
+
+def test_objective_over_floor_divides_by_an_independent_least_squares_floor(tmp_path):
+    """objective=over_floor: the run returns its final cost over the instance's floor, which is
+    the minimum of the cost; checked with scipy's least_squares on the residual, started from
+    the nominal model, with a numeric Jacobian (not the package's LM, whose Jacobian is analytic)."""
+    from scipy.optimize import least_squares
+
+    over = ["instance=puma560_6poses", "refine=none", "population.generations=5", "objective=over_floor"]
+    value = app.run(config.load(over), tmp_path / "ga", progress=False)
+    s = json.loads((tmp_path / "ga" / "summary.json").read_text())
+    p = app.prepare(config.load(over), None).task.problem
+    fit = least_squares(p.residual, np.zeros(p.lower.size), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    assert s["floor"]["floor"] == pytest.approx(float(p.costs(fit.x[None])[0]), rel=1e-6)
+    assert value == pytest.approx(s["final_cost"] / s["floor"]["reference"]) and value > 1.0
+    assert s["objective"] == value
+
+
+def test_exact_data_take_the_round_off_reference():
+    """Without noise the floor is round-off: the objective divides by 1e-9 x the nominal cost."""
+    from zrp_ga import summary
+
+    task = app.prepare(config.load(["instance=puma560_30poses_exact"]), None).task
+    f = summary.floor(task)
+    nominal = float(task.problem.costs(np.zeros(task.problem.lower.size))[0])
+    assert f["floor"] < 1e-12 * nominal and f["reference"] == pytest.approx(1e-9 * nominal)
+
+
+def test_hparams_search_composes_with_optuna():
+    pytest.importorskip("hydra_plugins.hydra_optuna_sweeper")
+    cfg = config.load(["hparams_search=ga_optuna"], return_hydra_config=True)
+    assert "OptunaSweeper" in cfg.hydra.sweeper._target_ and cfg.objective.value == "over_floor"
+    assert "population.mu" in cfg.hydra.sweeper.params and cfg.refine.op is None

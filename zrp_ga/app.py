@@ -87,6 +87,8 @@ def _build(cfg: DictConfig, out: Path | None, state: dict | None, reuse: bool = 
         algorithm = config.instantiate(cfg.algorithm, "algorithm")
     if state is not None and not algorithm.checkpointable:
         raise ConfigError(f"resume: {type(algorithm).__name__} runs keep no checkpoints")
+    if str(cfg.get("objective")) == "over_floor" and hasattr(task, "judged"):
+        raise ConfigError("objective: over_floor divides by a calibration's floor; this problem kind has none (use final_cost)")
     return Prepared(cfg, task, algorithm, state, out, instance=key if reuse else None)
 
 
@@ -151,7 +153,8 @@ def _other_overrides() -> list[str]:
 
 def run(cfg: DictConfig, out_dir: str | Path, progress: bool | None = None) -> float:
     """Run one calibration as configured, write its files into ``out_dir`` (or, resuming, the
-    run's own directory) and return the objective: the final cost. ``progress``: show the
+    run's own directory) and return the objective (``objective``: the final cost, or the final
+    cost over the instance's floor). ``progress``: show the
     progress line (default: ``cfg.progress``)."""
     global _prepared
     p = prepare(cfg, Path(out_dir))
@@ -173,7 +176,7 @@ def _run_prepared(p: Prepared, progress: bool) -> float:
         records.write_json(p.out / "status.json", {"status": status, "error": repr(exc)})
         raise
     records.write_json(p.out / "status.json", {"status": "done"})
-    return float(written["final_cost"])
+    return float(written["objective"])
 
 
 def execute(p: Prepared, out: Path | None, progress: bool) -> tuple[Any, dict]:
@@ -202,6 +205,8 @@ def execute(p: Prepared, out: Path | None, progress: bool) -> tuple[Any, dict]:
         diagnostics = summary.diagnostics(task, first=p.state is None, key=p.instance)
         result = p.algorithm.run(task.problem, rng, cbs, p.state)
     written, x = summary.build(task, result, cfg, resolved, diagnostics, p.algorithm.elapsed())
+    with threadpool_limits(limits=1, user_api="blas"):
+        written["objective"] = summary.objective(cfg, task, written, p.instance)
     if out is not None:
         summary.write(out, task, result, written, x)
     for w in written["warnings"]:
@@ -272,7 +277,8 @@ def sweep_job(cfg: DictConfig, out: Path) -> float:
         written = json.loads(done.read_text())
         _same_run(cfg, written.get("config"), out)
         log.info("%s: finished before; kept", out)
-        return float("nan") if written["final_cost"] is None else float(written["final_cost"])
+        value = written.get("objective", written["final_cost"])
+        return float("nan") if value is None else float(value)
     state = None
     if (out / checkpoint.NAME).exists():
         try:

@@ -63,13 +63,18 @@ class Timing(Callback):
 
 
 class Validation(Callback):
-    """The validation error (mm) and the parameter error of the genome each row reports."""
+    """The validation error (mm) and the parameter error of the genome each row reports (judged
+    again only when that genome changes: most generations keep their best)."""
 
     def __init__(self, judge: Judge):
         self.judge = judge
+        self._last: tuple[bytes, dict] | None = None
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
-        m = self.judge(algorithm.current()[0])
+        x = np.asarray(algorithm.current()[0], dtype=float)
+        if self._last is None or self._last[0] != x.tobytes():
+            self._last = (x.tobytes(), self.judge(x))
+        m = self._last[1]
         row.update(val_rms_mm=m["val_rms_m"] * 1e3, val_max_mm=m["val_max_m"] * 1e3, param_err=m["param_err"])
 
 

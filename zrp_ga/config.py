@@ -33,6 +33,11 @@ class Cost(enum.Enum):
     nonlinear = "nonlinear"  # the forward-kinematics residual
 
 
+class Objective(enum.Enum):
+    final_cost = "final_cost"  # what a run returns to a sweeper (Optuna, nevergrad): its final cost
+    over_floor = "over_floor"  # the final cost over the instance's floor (LM's cost, summary.json "floor")
+
+
 class Norm(enum.Enum):
     spectral = "spectral"  # 2-norm of the residual vector
     rms = "rms"  # 2-norm / sqrt(rows)
@@ -334,6 +339,7 @@ class Config:
     checkpoint_every: int = 10  # generations between checkpoints; 0: none
     resume: Optional[str] = None  # a run directory to continue from its checkpoint
     progress: bool = True  # a progress line on the terminal (single runs)
+    objective: Objective = Objective.final_cost  # what the run returns to a sweeper (zrp_ga.summary.objective)
 
 
 # Stored at the root of the config tree, not in a group, so that they are no options of their own

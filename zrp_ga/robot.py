@@ -263,7 +263,9 @@ class ZRPRobot:
 
     def to_yaml(self, path: str | Path | None = None) -> str:
         """YAML text of the robot (floats written exactly); also written to ``path`` if given."""
-        text = yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=None)
+        from zrp_ga import records
+
+        text = records.yaml_text(self.to_dict(), sort_keys=False, default_flow_style=None)
         if path is not None:
             Path(path).write_text(text)
         return text

@@ -47,7 +47,7 @@ import yaml
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from zrp_ga import so3
+from zrp_ga import records, so3
 from zrp_ga.dh import CONVENTIONS, DHMismatch, DHTable, to_dh
 from zrp_ga.robot import DEFAULT_LIMITS, MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
 from zrp_ga.urdf import check_transform, read_urdf, to_urdf
@@ -316,17 +316,17 @@ def dh_to_yaml(
     names = table.joint_names or tuple(f"joint_{i + 1}" for i in range(table.n))
     lines = [f"# {line}" if line else "#" for line in comment.splitlines()]
     head = {"name": table.name, "convention": table.convention, "units": {"length": length, "angle": angle}}
-    lines += [yaml.safe_dump(head, sort_keys=False, default_flow_style=None).rstrip(), "joints:"]
+    lines += [records.yaml_text(head, sort_keys=False, default_flow_style=None).rstrip(), "joints:"]
     for i, kind in enumerate(table.joint_types):
         row = {"name": names[i], "type": kind, "a": _short(table.a[i] / L), "alpha": _short(table.alpha[i] / A),
                "d": _short(table.d[i] / L), "theta": _short(table.theta[i] / A)}
         if table.limits is not None:
             row["limits"] = _short(np.asarray(table.limits[i]) / (A if kind == "R" else L))
-        lines.append("  - " + yaml.safe_dump(row, default_flow_style=True, sort_keys=False, width=10**9).strip())
+        lines.append("  - " + records.yaml_text(row, default_flow_style=True, sort_keys=False, width=10**9).strip())
     for key in ("base", "tool"):
         T = getattr(table, key)
         pose = {"xyz": _short(T[:3, 3] / L), "rpy": _short(so3.rpy(T[:3, :3]) / A)}
-        lines.append(yaml.safe_dump({key: pose}, sort_keys=False, default_flow_style=None).rstrip())
+        lines.append(records.yaml_text({key: pose}, sort_keys=False, default_flow_style=None).rstrip())
     text = "\n".join(lines) + "\n"
     if path is not None:
         Path(path).write_text(text)
@@ -387,7 +387,7 @@ def write_robot_files(
         "# tool: pose of the tool frame (link tool) in the hand frame (link hand). Lengths m;\n"
         "# quaternion_xyzw: x, y, z, w (scalar last, as scipy and ROS).\n"
     )
-    paths["frames"].write_text(comment + yaml.safe_dump(frames, sort_keys=False, default_flow_style=None))
+    paths["frames"].write_text(comment + records.yaml_text(frames, sort_keys=False, default_flow_style=None))
     return paths
 
 

@@ -75,14 +75,15 @@ def _compute(task: Task) -> dict[str, Any]:
             "condition_number": float(report.condition_number), "unidentifiable": list(report.null_directions)}  # fmt: skip
 
 
-def _from_sweep(key: str, compute) -> dict[str, Any]:
-    """``compute()``, kept in the sweep directory under ``key``'s hash (outside a sweep: computed)."""
+def _from_sweep(key: str, compute, what: str = "diagnostics") -> dict[str, Any]:
+    """``compute()``, kept in the sweep directory as ``what`` under ``key``'s hash (outside a
+    sweep: computed)."""
     import json
 
     sweep = _sweep_dir()
     if sweep is None:
         return compute()
-    path = sweep / ".zrp_ga" / f"diagnostics-{hashlib.sha1(key.encode()).hexdigest()[:16]}.json"
+    path = sweep / ".zrp_ga" / f"{what}-{hashlib.sha1(key.encode()).hexdigest()[:16]}.json"
     try:
         return json.loads(path.read_text())
     except (OSError, ValueError):
@@ -93,6 +94,44 @@ def _from_sweep(key: str, compute) -> dict[str, Any]:
     tmp.write_text(json.dumps(d))  # floats as repr: read back exactly (inf as Infinity)
     os.replace(tmp, path)
     return d
+
+
+ROUND_OFF = 1e-9  # a floor below ROUND_OFF x the nominal cost is round-off (as zrp-ga-report takes it)
+
+
+def floor(task: Task, key: str | None = None) -> dict[str, float]:
+    """The instance's floor: Levenberg-Marquardt's final cost from the nominal model (its
+    evaluations too), and ``reference`` = max(floor, ROUND_OFF x nominal cost), the cost the
+    objective ``over_floor`` divides by. Computed once per instance in this process and once
+    per sweep (kept beside its manifest, as :func:`diagnostics` is)."""
+    d = _floors.get(key) if key else None
+    if d is None:
+        d = _from_sweep(key, lambda: _lm_floor(task), "floor") if key else _lm_floor(task)
+        if key:
+            _floors[key] = d
+    return d
+
+
+_floors: dict[str, dict[str, float]] = {}  # instance key -> floor, in this process
+
+
+def _lm_floor(task: Task) -> dict[str, float]:
+    from zrp_ga.algorithms.lm import LM
+
+    p = task.problem
+    lm = LM().run(p, np.random.default_rng(0))
+    nominal = float(p.costs(np.zeros(p.lower.size))[0])
+    best = min(lm.cost, nominal) if np.isfinite(lm.cost) else nominal
+    return {"floor": float(best), "reference": max(float(best), ROUND_OFF * nominal), "lm_nevals": int(lm.nevals)}
+
+
+def objective(cfg, task: Task, written: dict, key: str | None) -> float:
+    """What the run returns to a sweeper (``objective``): the final cost, or the final cost over
+    the instance's floor's reference (:func:`floor`, then also in ``written`` as ``floor``)."""
+    if str(cfg.objective) in ("over_floor", "Objective.over_floor"):
+        written["floor"] = floor(task, key)
+        return float(written["final_cost"]) / written["floor"]["reference"]
+    return float(written["final_cost"])
 
 
 def _sweep_dir() -> Path | None:
@@ -270,7 +309,7 @@ def write_robot(out: Path, task: Task, x: np.ndarray, stem: str = "calibrated_ro
         entries = {name: _frame_entry(T) for name, T in tools.items()}
         with open(paths["frames"], "a") as f:
             f.write("# tools: every tool point's frame in the hand frame (tool: the first).\n")
-            f.write(yaml.safe_dump({"tools": entries}, sort_keys=False, default_flow_style=None))
+            f.write(records.yaml_text({"tools": entries}, sort_keys=False, default_flow_style=None))
     paths["mdh"] = out / f"{stem}_mdh.yaml"
     mdh, mdh_mismatch = robot_files.to_dh(arm, "mdh")
     header = f"Modified DH table of {arm.name} (zrp_ga.robot_files.to_dh): {mdh_mismatch}"
