@@ -179,7 +179,7 @@ def test_objective_over_floor_divides_by_an_independent_least_squares_floor(tmp_
     s = json.loads((tmp_path / "ga" / "summary.json").read_text())
     p = app.prepare(config.load(over), None).task.problem
     fit = least_squares(p.residual, np.zeros(p.lower.size), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    assert s["floor"]["floor"] == pytest.approx(float(p.costs(fit.x[None])[0]), rel=1e-6)
+    assert s["floor"]["cost"] == pytest.approx(float(p.costs(fit.x[None])[0]), rel=1e-6)
     assert value == pytest.approx(s["final_cost"] / s["floor"]["reference"]) and value > 1.0
     assert s["objective"] == value
 
@@ -191,7 +191,7 @@ def test_exact_data_take_the_round_off_reference():
     task = app.prepare(config.load(["instance=puma560_30poses_exact"]), None).task
     f = summary.floor(task)
     nominal = float(task.problem.costs(np.zeros(task.problem.lower.size))[0])
-    assert f["floor"] < 1e-12 * nominal and f["reference"] == pytest.approx(1e-9 * nominal)
+    assert f["cost"] < 1e-12 * nominal and f["reference"] == pytest.approx(1e-9 * nominal)
 
 
 def test_hparams_search_composes_with_optuna():

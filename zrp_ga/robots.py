@@ -48,9 +48,11 @@ def get(name: str) -> ZRPRobot:
 def load(name: str | None = None, file: str | None = None, base_link: str | None = None, tip_link: str | None = None) -> ZRPRobot:
     """The robot of the config's ``robot`` group: the robot file ``file`` if given (a DH or
     modified-DH table, a ZRP YAML or a URDF, whose chain runs from ``base_link`` to
-    ``tip_link``), else the preset ``name``."""
+    ``tip_link``; ``pkg:REL`` for a file shipped in zrp_ga/data), else the preset ``name``."""
     if file:
-        return read_robot(Path(file).expanduser(), base_link=base_link, tip_link=tip_link)
+        from zrp_ga.data import resolve
+
+        return read_robot(resolve(file), base_link=base_link, tip_link=tip_link)
     if not name:
         raise ValueError("robot: give a preset name (robot.name) or a robot file (robot.file)")
     return get(name)

@@ -100,8 +100,8 @@ ROUND_OFF = 1e-9  # a floor below ROUND_OFF x the nominal cost is round-off (as 
 
 
 def floor(task: Task, key: str | None = None) -> dict[str, float]:
-    """The instance's floor: Levenberg-Marquardt's final cost from the nominal model (its
-    evaluations too), and ``reference`` = max(floor, ROUND_OFF x nominal cost), the cost the
+    """The instance's floor: Levenberg-Marquardt's final cost from the nominal model (``cost``,
+    as zrp-ga-report reads it; its evaluations too), and ``reference`` = max(floor, ROUND_OFF x nominal cost), the cost the
     objective ``over_floor`` divides by. Computed once per instance in this process and once
     per sweep (kept beside its manifest, as :func:`diagnostics` is)."""
     d = _floors.get(key) if key else None
@@ -122,7 +122,7 @@ def _lm_floor(task: Task) -> dict[str, float]:
     lm = LM().run(p, np.random.default_rng(0))
     nominal = float(p.costs(np.zeros(p.lower.size))[0])
     best = min(lm.cost, nominal) if np.isfinite(lm.cost) else nominal
-    return {"floor": float(best), "reference": max(float(best), ROUND_OFF * nominal), "lm_nevals": int(lm.nevals)}
+    return {"cost": float(best), "reference": max(float(best), ROUND_OFF * nominal), "lm_nevals": int(lm.nevals)}
 
 
 def objective(cfg, task: Task, written: dict, key: str | None) -> float:

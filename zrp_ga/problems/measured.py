@@ -25,7 +25,6 @@ transform (robot base in the instrument's frame) and each tool's transform in th
 from __future__ import annotations
 
 import dataclasses
-import importlib.resources
 import logging
 import math
 from pathlib import Path
@@ -54,9 +53,9 @@ FAR_REGISTRATION = 0.02  # a registered nominal arm off by more than this share 
 
 def data_path(name: str) -> Path:
     """A measurement file: ``pkg:REL`` is a file shipped in zrp_ga/data, anything else a path."""
-    if name.startswith("pkg:"):
-        return Path(str(importlib.resources.files("zrp_ga.data").joinpath(name[4:])))
-    return Path(name).expanduser()
+    from zrp_ga.data import resolve
+
+    return resolve(name)
 
 
 @dataclasses.dataclass

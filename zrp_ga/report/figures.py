@@ -17,9 +17,11 @@ COST_LABEL = "best cost (2-norm of the residual; m and rad)"
 
 
 def save(fig: Figure, out: Path, name: str, formats: tuple[str, ...]) -> None:
-    """``fig`` as ``out/name.<ext>`` for each format (the figures lay themselves out: constrained layout)."""
+    """``fig`` as ``out/name.<ext>`` for each format (the figures lay themselves out: constrained
+    layout; the bounding box is the drawing's own, which keeps labels drawn outside the axes,
+    such as the critical-difference diagram's long configuration names)."""
     for ext in formats:
-        fig.savefig(out / f"{name}.{ext}", dpi=150)
+        fig.savefig(out / f"{name}.{ext}", dpi=150, bbox_inches="tight")
 
 
 def _legend_below(ax, n: int) -> None:
