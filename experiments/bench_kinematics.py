@@ -36,7 +36,7 @@ import llvmlite.binding as llvm
 import numba
 import numpy as np
 
-from zrp_ga import _kernels, kinematics, robots
+from zrp_ga import kinematics, robots
 from zrp_ga.layout import Layout
 from zrp_ga.measurements import Measurements
 from zrp_ga.problem import CalibrationProblem
@@ -50,7 +50,7 @@ CHAINS = 10  # independent accumulators in the peak benchmark
 def _fma_ir(lanes: int, ftype: str) -> str:
     """LLVM IR of ``fma_loop(n, out)``: n iterations of CHAINS independent vector FMAs x = x a + b."""
     vt, name = f"<{lanes} x {ftype}>", f"v{lanes}{'f64' if ftype == 'double' else 'f32'}"
-    splat = lambda hexval: "<" + ", ".join([f"{ftype} {hexval}"] * lanes) + ">"  # noqa: E731
+    splat = lambda hexval: "<" + ", ".join([f"{ftype} {hexval}"] * lanes) + ">"
     a, b, one = splat("0x3FEFFFFFE0000000"), splat("0x3E7AD7F2A0000000"), splat("0x3FF0000000000000")
     lines = [f"declare {vt} @llvm.fma.{name}({vt}, {vt}, {vt})", "define void @fma_loop(i64 %n, ptr %out) {",
              "entry:", "  br label %loop", "loop:", "  %i = phi i64 [0, %entry], [%i1, %loop]"]
@@ -305,7 +305,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args()
     P, M = args.population, args.poses
-    lines = [f"# Pose-cost kernels against the machine's peak\n", f"Machine: {machine()}.",
+    lines = ["# Pose-cost kernels against the machine's peak\n", f"Machine: {machine()}.",
              f"Command: `python experiments/bench_kinematics.py --population {P} --poses {M} --seconds {args.seconds}`."]
     if os.environ.get("NUMBA_CPU_FEATURES"):
         lines.append(f"NUMBA_CPU_FEATURES set: `{os.environ['NUMBA_CPU_FEATURES'][-60:]}` (last 60 characters).")

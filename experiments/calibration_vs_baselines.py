@@ -12,10 +12,9 @@ the overrides are printed beside every row.
 from __future__ import annotations
 
 import argparse
+import json
 import tempfile
 from pathlib import Path
-
-import json
 
 import numpy as np
 import pandas as pd

@@ -24,13 +24,13 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from scipy import stats  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from scipy import stats
 
-from zrp_ga import app, config, report  # noqa: E402
-from zrp_ga.operators import subset  # noqa: E402
+from zrp_ga import app, config, report
+from zrp_ga.operators import subset
 
 RESULTS = Path(__file__).parent / "results" / "pose_selection"
 ARMS = {"pose_selection": "simulated PUMA 560: 500 candidates, full poses",

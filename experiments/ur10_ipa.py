@@ -54,7 +54,7 @@ def main() -> None:
         s = summaries[name] = json.loads((run_dir / "summary.json").read_text())
         for part in ("calibration", "validation"):
             e = s["position_error_mm"][part]
-            fmt = lambda d: f"{d['mean']:.3f} / {d['rms']:.3f} / {d['max']:.3f}"  # noqa: E731
+            fmt = lambda d: f"{d['mean']:.3f} / {d['rms']:.3f} / {d['max']:.3f}"
             shown = " ".join(over[len(MEASURED):]) or "(none)"
             lines.append(f"| {name} | `{shown}` | {part} ({Path(s['problem']['files'][part]).name}) | "
                          f"{e['nominal']['poses']} | {fmt(e['nominal'])} | {fmt(e['calibrated'])} | {s['wall_s']:.2f} |")  # fmt: skip

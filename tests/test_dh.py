@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from dh_reference import dh_fk
 from scipy.spatial.transform import Rotation
 
-from dh_reference import dh_fk
 from zrp_ga import kinematics, robots
 from zrp_ga.dh import DHTable, to_dh
 from zrp_ga.robot import ZRPRobot

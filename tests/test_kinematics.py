@@ -2,14 +2,14 @@ import dataclasses
 
 import numpy as np
 import pytest
-
 from dh_reference import dh_fk
+
 from zrp_ga import kinematics, robots, so3
 from zrp_ga.layout import Layout
 from zrp_ga.problem import CalibrationProblem
-from zrp_ga.simulation import simulate
 from zrp_ga.robot import ZRPRobot
 from zrp_ga.robot_files import read_dh
+from zrp_ga.simulation import simulate
 
 
 def _table(name):

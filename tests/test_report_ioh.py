@@ -87,7 +87,7 @@ def test_export_matches_what_ioh_writes(tmp_path):
         fid = b["function_id"]
         assert ref.name == mine.name.replace(f"_f{a['function_id']}_", f"_f{fid}_")
         for key in ("function_name", "maximization", "algorithm", "attributes"):
-            assert a[key] == b[key] or key == "algorithm" and a[key]["name"] == b[key]["name"], key
+            assert a[key] == b[key] or (key == "algorithm" and a[key]["name"] == b[key]["name"]), key
         (sa,), (sb,) = a["scenarios"], b["scenarios"]
         assert sa["dimension"] == sb["dimension"] == 2
         assert sb["path"] == sa["path"].replace(f"_f{a['function_id']}", f"_f{fid}")

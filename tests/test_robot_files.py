@@ -7,9 +7,9 @@ import re
 import numpy as np
 import pytest
 import yaml
+from dh_reference import dh_fk
 from scipy.spatial.transform import Rotation
 
-from dh_reference import dh_fk
 from zrp_ga import kinematics, robots
 from zrp_ga.robot import ZRPRobot
 from zrp_ga.robot_files import dh_to_yaml, read_dh, read_robot, to_dh, to_urdf, write_robot_files

@@ -114,7 +114,7 @@ N, K = 25, 8
 
 def _distinct_in_range(A, n=N):
     A = np.atleast_2d(A)
-    return (np.all(A == np.rint(A)) and np.all((A >= 0) & (A < n))
+    return (np.all(np.rint(A) == A) and np.all((A >= 0) & (n > A))
             and all(len(set(row)) == len(row) for row in A.astype(int).tolist()))  # fmt: skip
 
 

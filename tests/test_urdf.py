@@ -4,12 +4,12 @@ against transforms computed here with scipy, and DH chains against tests/dh_refe
 import numpy as np
 import pytest
 import yourdfpy
+from dh_reference import dh_fk
 from scipy.spatial.transform import Rotation
 
-from dh_reference import dh_fk
 from zrp_ga import kinematics, robots
 from zrp_ga.robot import ZRPRobot
-from zrp_ga.robot_files import read_dh, read_robot, to_urdf
+from zrp_ga.robot_files import read_robot, to_urdf
 
 
 def random_dh_arm(rng, types):

@@ -30,6 +30,7 @@ from zrp_ga.config import ConfigError
 log = logging.getLogger("zrp_ga")
 config.register()
 import hydra_plugins.zrp_ga_launcher.launcher  # noqa: E402,F401 (hydra/launcher=zrp_ga and =local; see _register_launcher)
+
 RUN_FILES = ("convergence.csv", "summary.json")
 
 
@@ -232,7 +233,7 @@ def warm_up(cfg: DictConfig) -> None:
             if p.algorithm.has_next():
                 p.algorithm.step()
             p.task.judge(p.algorithm.current()[0])
-    except Exception as exc:  # noqa: BLE001 (a warm-up only)
+    except Exception as exc:
         log.debug("warm-up: %s", exc)
 
 

@@ -166,7 +166,7 @@ class Measurements:
 
     def subset(self, rows: NDArray) -> Measurements:
         """The rows ``rows`` (indices or a mask), with their file lines."""
-        pick = lambda a: None if a is None else a[rows]  # noqa: E731
+        pick = lambda a: None if a is None else a[rows]
         return dataclasses.replace(self, q=self.q[rows], p=self.p[rows], R=pick(self.R), weights=pick(self.weights),
                                    std=pick(self.std), lines=self.lines[rows], tool=pick(self.tool))  # fmt: skip
 
@@ -456,5 +456,5 @@ def split(data: Measurements, fraction: float, rng: np.random.Generator) -> tupl
     if not 0.0 < fraction < 1.0:
         raise ValueError(f"problem.validation_fraction: must be in (0, 1), got {fraction}")
     order = rng.permutation(len(data.q))
-    k = int(round(fraction * len(order)))
+    k = round(fraction * len(order))
     return data.subset(np.sort(order[k:])), data.subset(np.sort(order[:k]))

@@ -52,7 +52,7 @@ from zrp_ga.dh import CONVENTIONS, DHMismatch, DHTable, to_dh
 from zrp_ga.robot import DEFAULT_LIMITS, MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
 from zrp_ga.urdf import check_transform, read_urdf, to_urdf
 
-__all__ = ["read_robot", "read_dh", "dh_to_yaml", "to_dh", "to_urdf", "write_robot_files", "DHTable", "DHMismatch"]
+__all__ = ["DHMismatch", "DHTable", "dh_to_yaml", "read_dh", "read_robot", "to_dh", "to_urdf", "write_robot_files"]
 
 Array = NDArray[np.float64]
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}

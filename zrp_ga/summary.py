@@ -29,7 +29,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from zrp_ga import error_model, records, robot_files
 from zrp_ga.algorithms import Result

@@ -96,7 +96,7 @@ def main() -> None:
              "Position errors in mm; every run is `zrp-ga` with the overrides shown.", "",
              "| arm | validation | method | overrides | set | points | nominal, registered: mean / RMS / max | calibrated: mean / RMS / max | optimiser wall time, s | URDF check, mm |",
              "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
-    fmt = lambda d: f"{d['mean']:.3f} / {d['rms']:.3f} / {d['max']:.3f}"  # noqa: E731
+    fmt = lambda d: f"{d['mean']:.3f} / {d['rms']:.3f} / {d['max']:.3f}"
     summaries = {}
     for key, over in runs().items():
         run_dir = root / str(len(summaries))

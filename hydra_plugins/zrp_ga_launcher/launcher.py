@@ -16,7 +16,8 @@ a leading underscore).
 # No "from __future__ import annotations": Hydra's plugin scan executes this module before it is
 # in sys.modules, where dataclasses look up string annotations.
 import dataclasses
-from typing import Any, Optional, Sequence
+from collections.abc import Sequence
+from typing import Any, Optional
 
 from hydra.core.config_store import ConfigStore
 from hydra.core.utils import JobReturn

@@ -131,7 +131,7 @@ class Algorithm:
 
     def row(self) -> dict:
         """This generation's row: gen, nevals, the population statistics, the reported cost."""
-        x, cost = self.current()
+        _, cost = self.current()
         return dict(gen=self.gen, nevals=self.nevals, **population_stats(self.costs) | {"best": cost},
                     n_nonfinite=self.n_nonfinite)  # fmt: skip
 

@@ -162,7 +162,7 @@ class GA(Algorithm):
     def _refine(self, off: Array) -> NDArray[np.bool_]:
         """A share of the children takes the pseudo-inverse step (the paper's step 8); repaired."""
         refined = np.zeros(len(off), dtype=bool)
-        n = int(round(self.refine_conf.share * len(off))) if hasattr(self.toolbox, "refine") else 0
+        n = round(self.refine_conf.share * len(off)) if hasattr(self.toolbox, "refine") else 0
         if n:
             chosen = self.rng.choice(len(off), size=n, replace=False)
             block = off[chosen]

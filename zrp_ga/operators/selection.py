@@ -28,7 +28,7 @@ def tournament(costs: NDArray, k: int, rng: np.random.Generator, size: int = 3) 
 def truncation(costs: NDArray, k: int, rng: np.random.Generator, fraction: float = 0.5) -> NDArray:
     """k parents drawn uniformly from the best ``fraction`` of the population."""
     c = _finite(np.asarray(costs, dtype=float))
-    best = np.argsort(c, kind="stable")[: max(1, int(round(fraction * len(c))))]
+    best = np.argsort(c, kind="stable")[: max(1, round(fraction * len(c)))]
     return best[rng.integers(0, len(best), size=k)]
 
 

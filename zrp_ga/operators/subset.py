@@ -92,7 +92,7 @@ def swap(ind: Array, rng: np.random.Generator, up: Array, indpb: float = 0.1) ->
     """Replace each gene with probability ``indpb`` (at least one per genome) by a candidate in
     [0, up] outside the subset; at most as many genes as there are such candidates."""
     A = rows(ind)
-    N, k = A.shape
+    k = A.shape[1]
     n = int(np.max(up)) + 1
     mask = rng.random(A.shape) < indpb
     none = np.flatnonzero(~mask.any(axis=1))

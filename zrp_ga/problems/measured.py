@@ -79,7 +79,7 @@ class MeasuredTask(Task):
         return out
 
     def report(self, x: np.ndarray) -> dict[str, Any]:
-        mm = lambda e: {k: v * 1e3 if k != "poses" else v for k, v in metrics.summary(e).items()}  # noqa: E731
+        mm = lambda e: {k: v * 1e3 if k != "poses" else v for k, v in metrics.summary(e).items()}
         return {
             "registration": self.registration.to_dict(),
             "position_error_mm": {k: {"nominal": mm(b), "calibrated": mm(a)} for k, (b, a) in self.errors(x).items()},

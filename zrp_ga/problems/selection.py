@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zrp_ga import error_model, measurements, metrics, observability, records, simulation
+from zrp_ga import error_model, metrics, observability, records, simulation
 from zrp_ga.config import Cost, Index, PoseSelectionConf, section
 from zrp_ga.layout import Layout
 from zrp_ga.measurements import Measurements
@@ -151,7 +151,7 @@ def judge(task: Task) -> Judgement:
     rms, vmax = task.judge.validation_errors(both)
     err = task.judge.param_error(both)
     fit = metrics.position_errors(p.layout, p.nominal, x, p.data)
-    pair = lambda a: (float(a[0]), float(a[1]))  # noqa: E731
+    pair = lambda a: (float(a[0]), float(a[1]))
     return Judgement(task, x, pair(rms), pair(vmax), pair(err), float(np.sqrt(np.mean(fit**2))), result.nevals)
 
 
@@ -202,7 +202,7 @@ class SelectionTask(Task):
         """``summary.json``'s judgement of the best subset (see :func:`zrp_ga.summary.judged`)."""
         x = self.chosen(result.x)
         j = self.judgement(x)
-        mm = lambda pair: {"nominal": pair[0] * 1e3, "calibrated": pair[1] * 1e3}  # noqa: E731
+        mm = lambda pair: {"nominal": pair[0] * 1e3, "calibrated": pair[1] * 1e3}
         judged = {"final_cost": result.cost, "optimiser_cost": result.cost, "returned": "optimiser",
                   "nominal_cost": None, "validation_rms_mm": mm(j.val_rms_m), "validation_max_mm": mm(j.val_max_m),
                   "param_err": {"nominal": j.param_err[0], "calibrated": j.param_err[1]},
@@ -306,7 +306,7 @@ def measured(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any]
     from zrp_ga.problems.measured import from_measurements, read_sets
 
     cand, val = read_sets(robot, seed, c)
-    on = lambda rows: from_measurements(robot, cand.subset(rows), val, c)  # noqa: E731
+    on = lambda rows: from_measurements(robot, cand.subset(rows), val, c)
     files = {"calibration": cand.source, "validation": val.source if val is not None else None}
     name = f"{robot.name}-{Path(cand.source).stem}-select{c.k}-{c.index.value}"
     return dict(candidates=cand, calibrate_on=on, truth_x=None, name=name, info={"kind": "pose_selection", "files": files})

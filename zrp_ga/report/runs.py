@@ -108,7 +108,7 @@ def read_summary(path: Path) -> dict[str, Any]:
     checks = {
         "instance": lambda v: isinstance(v, str) and v != "",
         "nevals": lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0,
-        "final_cost": lambda v: v is None or isinstance(v, (int, float)) and not isinstance(v, bool),
+        "final_cost": lambda v: v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)),
     }
     for key, ok in checks.items():
         if key not in summary:
