@@ -199,3 +199,21 @@ def test_hparams_search_composes_with_optuna():
     cfg = config.load(["hparams_search=ga_optuna"], return_hydra_config=True)
     assert "OptunaSweeper" in cfg.hydra.sweeper._target_ and cfg.objective.value == "over_floor"
     assert "population.mu" in cfg.hydra.sweeper.params and cfg.refine.op is None
+
+
+def test_a_named_instance_is_the_same_whatever_the_runs_seed():
+    """problem.seed fixes the simulated instance; the run's seed only varies the optimiser
+    (before, the run's seed replaced problem.seed and every seed drew another instance under
+    the same instance name)."""
+    def data(*over):
+        p = app.prepare(config.load(list(over)), None).task.problem
+        return p.data.q, p.data.p
+
+    a, b = data("instance=puma560_30poses", "seed=0"), data("instance=puma560_30poses", "seed=7")
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+    c = data("problem=multipose", "seed=0")  # no problem.seed: the run's seed draws the instance
+    d = data("problem=multipose", "seed=7")
+    assert not np.array_equal(c[0], d[0])
+    e = data("problem=multipose", "seed=7", "problem.seed=0")
+    np.testing.assert_array_equal(c[0], e[0])

@@ -103,7 +103,7 @@ def calibrate(
     cfg = config.load(over + ["problem.calibration_file=memory"] if data is not None else over)
     arm = robot if isinstance(robot, ZRPRobot) else robots.load(**_robot_source(robot))
     if data is None:
-        task = config.instantiate(cfg.problem, "problem", robot=arm, seed=seed)
+        task = config.instantiate(cfg.problem, "problem", robot=arm, run_seed=seed)
     else:
         conf = config.section(config.MeasuredConf, {k: v for k, v in cfg.problem.items() if k != "_target_"}, "problem")
         task = measured.from_measurements(arm, _measurements(data, arm, conf), _measurements(validation, arm, conf), conf)

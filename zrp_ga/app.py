@@ -107,7 +107,7 @@ def _instance(cfg: DictConfig, reuse: bool) -> tuple[str, Any]:
     if reuse and key in _instances:
         return key, _instances[key]
     robot = config.instantiate(cfg.robot, "robot")
-    task = config.instantiate(cfg.problem, "problem", robot=robot, seed=int(cfg.seed))
+    task = config.instantiate(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
     if reuse:
         _instances[key] = task
         while len(_instances) > MAX_INSTANCES:

@@ -1,6 +1,8 @@
 """Problem kinds: what the config's ``problem`` group builds. Each kind is one module here with a
-``build(robot, seed, **settings) -> Task`` function and one config file in ``conf/problem``
-naming it by ``_target_`` (and a schema in :mod:`zrp_ga.config`).
+``build(robot, run_seed, **settings) -> Task`` function and one config file in ``conf/problem``
+naming it by ``_target_`` (and a schema in :mod:`zrp_ga.config`). ``run_seed`` is the run's
+seed; ``settings`` are the ``problem`` node's keys, its own ``seed`` among them (a named
+instance's, which the run's seed must not replace).
 
 A :class:`Task` is a problem instance (:class:`zrp_ga.problem.CalibrationProblem`, what the
 optimisers see) with what judges its answers (:class:`zrp_ga.metrics.Judge`: validation poses,

@@ -129,11 +129,11 @@ def measured_format(robot: ZRPRobot, c: MeasuredConf) -> measurements.Format:
     return measurements.zrp_format(robot.n, c.length_unit, c.angle_unit, c.orientation_convention)
 
 
-def build(robot: ZRPRobot, seed: int, **settings) -> MeasuredTask:
+def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> MeasuredTask:
     """Read and split the measurement files of ``settings`` (``zrp_ga.config.MeasuredConf``'s
     keys, :func:`read_sets`), then :func:`from_measurements`."""
     c: MeasuredConf = section(MeasuredConf, settings, "problem")
-    return from_measurements(robot, *read_sets(robot, seed, c), c)
+    return from_measurements(robot, *read_sets(robot, run_seed, c), c)
 
 
 def read_sets(robot: ZRPRobot, seed: int, c: MeasuredConf) -> tuple[Measurements, Measurements | None]:

@@ -312,11 +312,11 @@ def measured(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any]
     return dict(candidates=cand, calibrate_on=on, truth_x=None, name=name, info={"kind": "pose_selection", "files": files})
 
 
-def build(robot: ZRPRobot, seed: int, **settings) -> SelectionTask:
+def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> SelectionTask:
     """The pose-selection instance of ``settings`` (``zrp_ga.config.PoseSelectionConf``'s keys):
     simulated candidates, or the rows of ``calibration_file``."""
     c: PoseSelectionConf = section(PoseSelectionConf, settings, "problem")
-    parts = measured(robot, seed, c) if c.calibration_file else simulated(robot, seed, c)
+    parts = measured(robot, run_seed, c) if c.calibration_file else simulated(robot, run_seed, c)
     everything = parts["calibrate_on"](np.arange(parts["candidates"].M))
     problem = SelectionProblem(everything.problem, c.k, c.index, c.length_scale, c.rcond, c.ridge)
     cheap = Judge(problem.layout, problem.nominal)  # per generation: nothing (see the module docstring)

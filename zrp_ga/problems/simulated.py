@@ -15,13 +15,14 @@ from zrp_ga.problems import Task, half_ranges
 from zrp_ga.robot import ZRPRobot
 
 
-def build(robot: ZRPRobot, seed: int, **settings) -> Task:
+def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> Task:
     """The instance of ``settings`` (``zrp_ga.config.SimulatedConf``'s keys) for ``robot``.
-    The problem draws from a random stream of its own, ``[problem.seed or seed, 1]``: with the
-    optimiser's, the first genome would be the true errors."""
+    The problem draws from a random stream of its own, ``[problem.seed or run_seed, 1]`` (with
+    the optimiser's, the first genome would be the true errors): a named instance keeps its
+    ``problem.seed`` whatever the run's seed."""
     c: SimulatedConf = section(SimulatedConf, settings, "problem")
     layout = Layout(robot.n, base=c.identify_base, hand=c.identify_hand)
-    instance_seed = seed if c.seed is None else c.seed
+    instance_seed = run_seed if c.seed is None else c.seed
     sim = simulation.simulate(
         robot, layout, np.random.default_rng([instance_seed, 1]), n_poses=c.n_poses, n_validation=c.n_validation,
         axis_error=c.axis_error, body_error=c.body_error, joint_noise=c.joint_noise, position_noise=c.position_noise,
