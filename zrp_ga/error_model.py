@@ -278,6 +278,43 @@ class IdentifiabilityReport:
         return "\n".join(lines)
 
 
+def _known_null_directions(robot: ZRPRobot, names: list[str]) -> list[tuple[str, Array]]:
+    """Directions (K,) of the genome that the geometry of ``robot`` says measurements may not
+    see, with their labels: the slide of the point on axis i along it (a prismatic joint's axis
+    also across it), and the two tilts of an axis through the end point about that point."""
+    K = len(names)
+    index = {name: k for k, name in enumerate(names)}
+    candidates: list[tuple[str, Array]] = []
+    for i in range(1, robot.n + 1):
+        a, b = f"b0_{i}x", f"b0_{i + 1}x"
+        if a in index and b in index:
+            v = np.zeros(K)
+            v[index[a] : index[a] + 3] = robot.u0[i - 1]
+            v[index[b] : index[b] + 3] = -robot.u0[i - 1]
+            candidates.append((f"b0_{i}/b0_{i + 1} slide along u0_{i}", v / np.sqrt(2)))
+            if robot.joint_types[i - 1] == "P":
+                for c, e in zip("xyz", np.eye(3)):
+                    v = np.zeros(K)
+                    v[index[a] : index[a] + 3], v[index[b] : index[b] + 3] = e, -e
+                    label = f"b0_{i}/b0_{i + 1} shift along {c} (prismatic joint {i}: its axis has no fixed point)"
+                    candidates.append((label, v / np.sqrt(2)))
+        # Axis i through the end point e: it can tilt about e unseen by position data. Tilting
+        # u0_i by t moves its point c_i by -L t (L = (e - c_i) . u0_i) to keep e on the axis.
+        c_i = robot.b0[:i].sum(axis=0)
+        arm = robot.b0.sum(axis=0) - c_i
+        L = arm @ robot.u0[i - 1]
+        if np.linalg.norm(arm - L * robot.u0[i - 1]) < 1e-9 and (a in index or L == 0.0):
+            for t in np.linalg.svd(robot.u0[i - 1][None])[2][1:]:  # two tilts normal to u0_i
+                v = np.zeros(K)
+                v[index[f"u0_{i}x"] : index[f"u0_{i}x"] + 3] = t
+                if a in index:
+                    v[index[a] : index[a] + 3] -= L * t
+                v[index[b] : index[b] + 3] += L * t
+                label = f"u0_{i} tilts about the end point (axis {i} passes through it)"
+                candidates.append((label, v / np.linalg.norm(v)))
+    return candidates
+
+
 def identifiability(
     J: ArrayLike, names: list[str], robot: ZRPRobot | None = None, rtol: float | None = None, max_listed: int = 4
 ) -> IdentifiabilityReport:
@@ -293,41 +330,11 @@ def identifiability(
     K = J.shape[1]
     if len(names) != K:
         raise ValueError(f"names: {len(names)} names for {K} Jacobian columns")
-    s = np.linalg.svd(J, compute_uv=False)
+    _, s, Vt = np.linalg.svd(J, full_matrices=J.shape[0] < K)  # Vt (K, K) either way; no (rows, rows) U
     tol = s[0] * (rtol if rtol is not None else max(J.shape) * np.finfo(float).eps)
     rank = int(np.sum(s > tol))
-    _, _, Vt = np.linalg.svd(J)
     N = Vt[rank:].T  # (K, d) orthonormal null basis
-    candidates: list[tuple[str, Array]] = []
-    if robot is not None:
-        index = {name: k for k, name in enumerate(names)}
-        for i in range(1, robot.n + 1):
-            a, b = f"b0_{i}x", f"b0_{i + 1}x"
-            if a in index and b in index:
-                v = np.zeros(K)
-                v[index[a] : index[a] + 3] = robot.u0[i - 1]
-                v[index[b] : index[b] + 3] = -robot.u0[i - 1]
-                candidates.append((f"b0_{i}/b0_{i + 1} slide along u0_{i}", v / np.sqrt(2)))
-                if robot.joint_types[i - 1] == "P":
-                    for c, e in zip("xyz", np.eye(3)):
-                        v = np.zeros(K)
-                        v[index[a] : index[a] + 3], v[index[b] : index[b] + 3] = e, -e
-                        label = f"b0_{i}/b0_{i + 1} shift along {c} (prismatic joint {i}: its axis has no fixed point)"
-                        candidates.append((label, v / np.sqrt(2)))
-            # Axis i through the end point e: it can tilt about e unseen by position data. Tilting
-            # u0_i by t moves its point c_i by -L t (L = (e - c_i) . u0_i) to keep e on the axis.
-            c_i = robot.b0[:i].sum(axis=0)
-            arm = robot.b0.sum(axis=0) - c_i
-            L = arm @ robot.u0[i - 1]
-            if np.linalg.norm(arm - L * robot.u0[i - 1]) < 1e-9 and (a in index or L == 0.0):
-                for t in np.linalg.svd(robot.u0[i - 1][None])[2][1:]:  # two tilts normal to u0_i
-                    v = np.zeros(K)
-                    v[index[f"u0_{i}x"] : index[f"u0_{i}x"] + 3] = t
-                    if a in index:
-                        v[index[a] : index[a] + 3] -= L * t
-                    v[index[b] : index[b] + 3] += L * t
-                    label = f"u0_{i} tilts about the end point (axis {i} passes through it)"
-                    candidates.append((label, v / np.linalg.norm(v)))
+    candidates = _known_null_directions(robot, names) if robot is not None else []
     candidates += [(f"{name} has no effect", np.eye(K)[k]) for k, name in enumerate(names)]
     named, basis = [], np.zeros((K, 0))
     for label, v in candidates:
