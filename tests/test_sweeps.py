@@ -342,3 +342,13 @@ def test_spawned_workers_write_what_forked_ones_write(tmp_path, ours):
     assert sorted(spawned) == sorted(forked)
     for overrides, frame in forked.items():
         pd.testing.assert_frame_equal(spawned[overrides], frame)
+
+
+def test_a_suite_sweep_composes_once_per_instance_not_per_job(hydra_loader):
+    """``instance=...`` options are ``_global_`` (not separable): each is Hydra's composition
+    once, and the jobs that share it take the other groups' subtrees as usual."""
+    grid = itertools.product(["puma560_6poses", "ur10_30poses", "stanford_30poses"], ["one_point", "blend"],
+                             ["gaussian", "polynomial"], range(2))  # fmt: skip
+    jobs = [[f"instance={i}", f"crossover={c}", f"mutation={m}", f"seed={s}"] for i, c, m, s in grid]
+    # the first job; the two other instances; for each instance, crossover and mutation changed
+    assert _compare_with_hydra(hydra_loader, ["experiment=operator_suite"], jobs) == 1 + 2 + 3 * 2

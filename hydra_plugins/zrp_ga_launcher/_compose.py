@@ -16,9 +16,11 @@ answering from compositions Hydra made:
   writes into its own package only: the two defaults lists then differ only in entries inside
   that package, so that everything outside it comes from the same files in the same order.
   That is checked on the defaults lists Hydra made, and the composition with the option changed
-  must give the first one back when the first subtree is put back; otherwise (an option with a
-  ``@package _global_`` header, one choosing other groups' options, packages inside each other)
-  the job is composed by Hydra.
+  must give the first one back when the first subtree is put back;
+- an option that is not separable so (an option with a ``@package _global_`` header, such as
+  ``instance=...``, one choosing other groups' options, packages inside each other) is composed
+  by Hydra once per shape and combination of such options, and that composition is then the
+  first job of the jobs sharing them (a suite sweep: one per instance, not one per job).
 
 Every job's ``hydra`` node is then completed as Hydra does: ``overrides.task``, the
 ``override_dirname`` and the choices. tests/test_sweeps.py compares the configs (YAML, node
@@ -70,7 +72,8 @@ class ComposingLoader(ConfigLoaderImpl):
         self._groups: dict[str, bool] = {}
         self._templates: dict[tuple, _Composed] = {}  # (shape, options) -> Hydra's composition
         self._bases: dict[Shape, _Composed] = {}  # shape -> the first composition of that shape
-        self._variants: dict[tuple, _Composed | None] = {}  # (shape, group, option) -> None if not separable
+        self._variants: dict[tuple, _Composed | None] = {}  # (shape, base lines, group, option) -> None if not separable
+        self._fixed_bases: dict[tuple, _Composed] = {}  # (shape, non-separable options) -> the first composition with them
         self._last_defaults: list[tuple] = []
 
     @classmethod
@@ -103,7 +106,10 @@ class ComposingLoader(ConfigLoaderImpl):
             template = self._templates.get(key)  # perhaps composed on the way, as a group's variant
             if template is None:
                 cfg, self._templates[key] = self._hydra(master_config, lines, options)
-                self._bases.setdefault(shape, self._templates[key])
+                first = self._bases.setdefault(shape, self._templates[key])
+                fixed = self._fixed(master_config, shape, first, options)
+                if fixed:
+                    self._fixed_bases.setdefault((shape, fixed), self._templates[key])
                 return cfg
             cfg = pickle.loads(template.data)
         self._complete(cfg, overrides, values)
@@ -143,6 +149,11 @@ class ComposingLoader(ConfigLoaderImpl):
         base = self._bases.get(shape)
         if base is None:
             return None
+        fixed = self._fixed(master, shape, base, options)
+        if fixed:  # the first composition with the same options that are not separable, if any
+            base = self._fixed_bases.get((shape, fixed))
+            if base is None:
+                return None
         changed = [self._variant(master, shape, base, g, o) for g, o in options.items() if base.options[g] != o]
         if any(v is None for v in changed) or not _disjoint([v.package for v in changed]):
             return None
@@ -153,9 +164,15 @@ class ComposingLoader(ConfigLoaderImpl):
             cfg.hydra.runtime.choices[group] = variant.options[group]
         return cfg
 
+    def _fixed(self, master: DictConfig, shape: Shape, base: _Composed, options: dict[str, str]) -> tuple:
+        """The options of ``options`` that differ from ``base``'s and are not separable from it."""
+        return tuple(sorted((g, o) for g, o in options.items()
+                            if base.options[g] != o and self._variant(master, shape, base, g, o) is None))  # fmt: skip
+
     def _variant(self, master: DictConfig, shape: Shape, base: _Composed, group: str, option: str) -> _Composed | None:
-        """Hydra's composition of ``base``'s overrides with ``group=option``, if separable."""
-        key = (shape, group, option)
+        """Hydra's composition of ``base``'s overrides with ``group=option``, if separable. One
+        that is not is kept as the first composition with that option (``_fixed_bases``)."""
+        key = (shape, tuple(base.lines), group, option)
         if key not in self._variants:
             lines = [f"{group}={option}" if (s[0] == "group" and s[1] == group) else line for s, line in zip(shape, base.lines)]
             cfg, variant = self._hydra(master, lines, {**base.options, group: option})
@@ -165,6 +182,9 @@ class ComposingLoader(ConfigLoaderImpl):
             variant.config = cfg
             self._variants[key] = variant if variant.package is not None else None
             self._templates.setdefault((shape, tuple(variant.options.items())), variant)
+            if variant.package is None:
+                fixed = tuple(sorted((g, o) for g, o in variant.options.items() if base.options[g] != o))
+                self._fixed_bases.setdefault((shape, fixed), variant)
         return self._variants[key]
 
     @staticmethod
