@@ -122,12 +122,15 @@ def main() -> None:
                         "inversion=none rotation=none population.mu=50 population.lambda_=50",
                         help="the GA's settings (default: the best pure set of the operator study)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=RESULTS / "peers.md")
+    parser.add_argument("--methods", nargs="*", default=None, help="a subset of the methods (default: all)")
     args = parser.parse_args()
     methods = {"zrp_ga GA": lambda p, s: ga(p, args.budget, s, args.ga.split()),
                "pymoo GA": lambda p, s: pymoo_run(p, args.budget, s, "GA"),
                "pymoo DE": lambda p, s: pymoo_run(p, args.budget, s, "DE"),
                "nevergrad CMA": lambda p, s: nevergrad_cma(p, args.budget, s),
                "cma (zrp_ga CMAES)": lambda p, s: cma_package(p, args.budget, s)}  # fmt: skip
+    if args.methods:
+        methods = {k: v for k, v in methods.items() if k in args.methods}
     rows, raw = [], []
     for name in args.instances:
         task = app.prepare(config.load([f"instance={name}"]), None).task
@@ -146,16 +149,21 @@ def main() -> None:
                 cells.append(f"{ok.sum()}/{len(e)}" + (f", {np.median(e[ok]):,.0f}" if ok.any() else ""))
             rows.append(f"| {name} | {method} | {' | '.join(cells)} | {time.perf_counter() - t0:.1f} |")
             print(rows[-1], flush=True)
+            write(args, rows, raw)  # after every method: a long run killed keeps what it finished
+    print(f"wrote {args.out}")
+
+
+def write(args: argparse.Namespace, rows: list[str], raw: list[dict]) -> None:
     head = ["# The GA beside pymoo's GA and DE, nevergrad's CMA and cma", "",
-            f"Command: `python experiments/peers.py --seeds {args.seeds} --budget {args.budget}` "
-            f"(GA settings: `{args.ga}`). Budget {args.budget:,} cost evaluations, {args.seeds} seeds; "
-            "the floor is LM's final cost (1e-9 x the nominal cost where that is at round-off).", "",
+            f"Command: `python experiments/peers.py --seeds {args.seeds} --budget {args.budget} "
+            f"--instances {' '.join(args.instances)}` (GA settings: `{args.ga}`). Budget {args.budget:,} cost "
+            f"evaluations, {args.seeds} seeds; the floor is LM's final cost (1e-9 x the nominal cost where that is "
+            "at round-off).", "",
             "| instance | method | final cost / floor, median | seeds reaching 1.05 x, median evaluations | "
             "seeds reaching 1.01 x, median evaluations | wall s |", "|---|---|---|---|---|---|"]  # fmt: skip
     args.out.parent.mkdir(exist_ok=True)
     args.out.write_text("\n".join(head + rows) + "\n")
     args.out.with_suffix(".json").write_text(json.dumps(raw, indent=1, default=float))
-    print(f"wrote {args.out}")
 
 
 if __name__ == "__main__":
