@@ -306,3 +306,15 @@ def test_bad_selection_settings_are_one_line_naming_the_key(tmp_path, override, 
     with pytest.raises(Exception) as info:
         app.prepare(config.load(["experiment=pose_selection", override]), tmp_path / "run")
     assert expected in app.one_line(info.value)
+
+
+def test_a_measured_subset_too_small_to_calibrate_fully_is_still_judged(tmp_path):
+    """8 of the UR10's rows: 24 position equations for 27 identifiable combinations. A measured
+    calibration refuses so few points; pose selection judges them anyway (underdetermined LM)
+    and says how many directions they identify."""
+    over = ["experiment=pose_selection", "problem=ur10_selection", "problem.k=8", "problem.reference=false",
+            "population.max_evals=200", "population.mu=20", "population.lambda_=20", "progress=false"]  # fmt: skip
+    app.run(config.load(over), tmp_path)
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert np.isfinite(s["validation_rms_mm"]["calibrated"])
+    assert any("choose more" in w for w in s["warnings"])

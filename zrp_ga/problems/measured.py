@@ -152,9 +152,12 @@ def read_sets(robot: ZRPRobot, seed: int, c: MeasuredConf) -> tuple[Measurements
     return calib, None
 
 
-def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | None, c: MeasuredConf) -> MeasuredTask:
+def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | None, c: MeasuredConf,
+                      underdetermined: bool = False) -> MeasuredTask:  # fmt: skip
     """Register ``robot`` to the calibration points, then the calibration problem in the
-    instrument's frame; ``val`` (or None) validates (module docstring)."""
+    instrument's frame; ``val`` (or None) validates (module docstring). Too few points for the
+    parameters are refused unless ``underdetermined`` (pose selection judges small subsets so,
+    and says how many directions they identify)."""
     _check_asked(calib, c)
     names = calib.tool_names or ("tool",)
     known = {str(k): np.asarray(v, dtype=float) * measurements.LENGTH[calib.units[0]] for k, v in (c.known_tools or {}).items()}
@@ -163,7 +166,8 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
         val = val.with_tool_names(names + tuple(known))
         if c.validation_registration.value == "rigid" and val.M < 3:
             raise ValueError(f"problem.validation_registration: rigid needs at least 3 validation points, {val.source} has {val.M}")
-    _check_enough(robot, len(names), calib, bool(c.use_orientation))
+    if not underdetermined:
+        _check_enough(robot, len(names), calib, bool(c.use_orientation))
     reg = register(robot, calib.q, calib.p, rotations=calib.R if c.use_orientation else None, tools=calib.tool,
                    tool_names=names)  # fmt: skip
     warnings = _registration_warnings(robot, reg, calib)

@@ -306,7 +306,7 @@ def measured(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any]
     from zrp_ga.problems.measured import from_measurements, read_sets
 
     cand, val = read_sets(robot, seed, c)
-    on = lambda rows: from_measurements(robot, cand.subset(rows), val, c)
+    on = lambda rows: from_measurements(robot, cand.subset(rows), val, c, underdetermined=True)
     files = {"calibration": cand.source, "validation": val.source if val is not None else None}
     name = f"{robot.name}-{Path(cand.source).stem}-select{c.k}-{c.index.value}"
     return dict(candidates=cand, calibrate_on=on, truth_x=None, name=name, info={"kind": "pose_selection", "files": files})
