@@ -175,7 +175,9 @@ def figure(summary: pd.DataFrame, refs: dict[str, dict], path: Path) -> None:
 
 
 def markdown(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
-    return report._markdown(df, floatfmt)
+    from zrp_ga.report.cli import markdown as table
+
+    return table(df, floatfmt)
 
 
 def main() -> None:
@@ -183,11 +185,16 @@ def main() -> None:
     parser.add_argument("--runs", type=Path, default=Path("multirun/pose_selection"))
     parser.add_argument("--out", type=Path, default=RESULTS)
     parser.add_argument("--random", type=int, default=100, help="random subsets per arm and k for the index question")
+    parser.add_argument("--reuse", action="store_true",
+                        help="take runs.csv and random_subsets.csv from --out (written by an earlier call) instead of recomputing")  # fmt: skip
     args = parser.parse_args()
     refs = {arm: reference(arm, args.runs) for arm in ARMS}
-    tasks = {arm: task_of(arm) for arm in ARMS}
-    df = with_candidates_rms(runs_table(args.runs), tasks)
-    sample = random_subsets(tasks, sorted(df.k.unique()), args.random)
+    if args.reuse:
+        df, sample = pd.read_csv(args.out / "runs.csv"), pd.read_csv(args.out / "random_subsets.csv")
+    else:
+        tasks = {arm: task_of(arm) for arm in ARMS}
+        df = with_candidates_rms(runs_table(args.runs), tasks)
+        sample = random_subsets(tasks, sorted(df.k.unique()), args.random)
     summary, tests = summary_table(df), tests_table(df)
     rho = correlation_table({"random subsets (sample)": sample, "runs of the sweeps": df})
     args.out.mkdir(parents=True, exist_ok=True)
