@@ -150,6 +150,10 @@ def test_info_defaults_and_help(tmp_path):
     for group in ("crossover: blend, none, one_point, sbx, subset, two_point, uniform", "robot: file, puma560, stanford, ur10"):
         assert group in proc.stdout
     assert "convergence.csv" in proc.stdout and "app" not in proc.stdout.split()
+    # zrp-ga lists the groups from one copy of Hydra's repository: the same text as Hydra's own
+    plain = "import sys; sys.argv = ['zrp-ga', '--help']; from zrp_ga import app; app.main()"
+    hydras = subprocess.run([sys.executable, "-c", plain], capture_output=True, text=True, cwd=tmp_path)
+    assert hydras.stdout == proc.stdout
 
 
 def test_a_users_own_config_directory(tmp_path):

@@ -353,10 +353,10 @@ def cli() -> None:
     os.environ["HYDRA_FULL_ERROR"] = "1"
     signal.signal(signal.SIGTERM, _stop)  # a job limit or shutdown: stop as at Ctrl-C, checkpoints saved
     _register_launcher()
-    from hydra_plugins.zrp_ga_launcher._compose import compose_once
+    from hydra_plugins.zrp_ga_launcher._compose import compose_once, group_options_once
 
     try:
-        with compose_once():
+        with compose_once(), group_options_once():
             main()
     except (HydraException, OmegaConfBaseException, ValueError, OSError, Refused) as exc:
         if full:

@@ -314,3 +314,31 @@ def _reuse(kept: dict, config_name: str | None, overrides: list[str], run_mode: 
         ConfigLoaderImpl._apply_overrides_to_config(parsed[-1:], cfg)
         cfg.hydra.overrides.hydra.append(extra[0])
     return cfg
+
+
+@contextlib.contextmanager
+def group_options_once() -> Iterator[None]:
+    """While active, Hydra's config loader lists the options of config groups from one copy of
+    its config repository per (config name, overrides), instead of a deep copy of the whole
+    repository (zrp_ga's structured schemas included) for every group it is asked about:
+    ``zrp-ga --help`` asks about 115 groups, which took 3 s here. The listing only reads the
+    copy (``CachingConfigRepository.get_group_options``), so sharing it changes no answer;
+    tests/test_app.py compares the help text with Hydra's own."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+    from hydra.core.object_type import ObjectType
+
+    original = ConfigLoaderImpl.get_group_options
+
+    def get_group_options(self: Any, group_name: str, results_filter: Any = ObjectType.CONFIG,
+                          config_name: str | None = None, overrides: list[str] | None = None) -> list[str]:  # fmt: skip
+        repos = self.__dict__.setdefault("_zrp_ga_listing_repos", {})
+        key = (config_name, tuple(overrides or ()))
+        if key not in repos:
+            repos[key] = self._parse_overrides_and_create_caching_repo(config_name, list(overrides or ()))[1]
+        return repos[key].get_group_options(group_name, results_filter)
+
+    ConfigLoaderImpl.get_group_options = get_group_options
+    try:
+        yield
+    finally:
+        ConfigLoaderImpl.get_group_options = original
