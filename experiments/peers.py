@@ -106,11 +106,11 @@ def cma_package(problem, budget: int, seed: int) -> Trace:
 
 
 def floor_of(task) -> float:
-    from zrp_ga.algorithms.lm import LM
+    """The floor's reference as runs with ``objective=over_floor`` divide by (LM's cost, or 1e-9 x
+    the nominal cost where that is round-off)."""
+    from zrp_ga import summary
 
-    floor = LM().run(task.problem, np.random.default_rng(0)).cost
-    nominal = float(task.problem.costs(np.zeros(task.problem.lower.size))[0])
-    return max(floor, 1e-9 * nominal)  # a floor at round-off: 1e-9 x the nominal cost (as zrp-ga-report)
+    return summary.floor(task)["reference"]
 
 
 def main() -> None:

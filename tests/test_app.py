@@ -221,3 +221,8 @@ def test_a_named_instance_is_the_same_whatever_the_runs_seed():
     assert not np.array_equal(c[0], d[0])
     e = data("problem=multipose", "seed=7", "problem.seed=0")
     np.testing.assert_array_equal(c[0], e[0])
+
+
+def test_over_floor_is_refused_where_there_is_no_floor(tmp_path):
+    with pytest.raises(ConfigError, match="objective: over_floor"):
+        app.prepare(config.load(["experiment=pose_selection", "objective=over_floor"]), tmp_path / "run")

@@ -88,7 +88,9 @@ def _build(cfg: DictConfig, out: Path | None, state: dict | None, reuse: bool = 
         algorithm = config.instantiate(cfg.algorithm, "algorithm")
     if state is not None and not algorithm.checkpointable:
         raise ConfigError(f"resume: {type(algorithm).__name__} runs keep no checkpoints")
-    if str(cfg.get("objective")) == "over_floor" and hasattr(task, "judged"):
+    from zrp_ga import summary
+
+    if summary.over_floor(cfg) and hasattr(task, "judged"):
         raise ConfigError("objective: over_floor divides by a calibration's floor; this problem kind has none (use final_cost)")
     return Prepared(cfg, task, algorithm, state, out, instance=key if reuse else None)
 

@@ -124,10 +124,17 @@ def _lm_floor(task: Task) -> dict[str, float]:
     return {"cost": float(best), "reference": max(float(best), ROUND_OFF * nominal), "lm_nevals": int(lm.nevals)}
 
 
+def over_floor(cfg) -> bool:
+    """Whether ``cfg`` asks for ``objective=over_floor`` (an Enum in a composed config, its
+    string in a checkpoint's)."""
+    value = cfg.get("objective")
+    return getattr(value, "value", value) == "over_floor"
+
+
 def objective(cfg, task: Task, written: dict, key: str | None) -> float:
     """What the run returns to a sweeper (``objective``): the final cost, or the final cost over
     the instance's floor's reference (:func:`floor`, then also in ``written`` as ``floor``)."""
-    if str(cfg.objective) in ("over_floor", "Objective.over_floor"):
+    if over_floor(cfg):
         written["floor"] = floor(task, key)
         return float(written["final_cost"]) / written["floor"]["reference"]
     return float(written["final_cost"])
