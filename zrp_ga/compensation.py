@@ -51,6 +51,8 @@ Array = NDArray[np.float64]
 TOLERANCE_M = 1e-6  # a target counts as reached within this position residual, m
 TOLERANCE_RAD = 1e-6  # and this orientation residual, rad
 ORIENTATION_LENGTH_M = 1.0  # 1 rad of orientation residual weighs as this many metres in the fit
+NEWTON_STEPS = 20  # Gauss-Newton steps before the bounded solver takes over
+NEWTON_DONE = 1e-14  # residual norm (m, rad) at which the steps stop: round-off
 KINDS = ("auto", "joints", "cartesian")
 RUN_MODEL = "calibrated_robot.yaml"
 
@@ -358,10 +360,12 @@ class Solution:
 def solve(robot: ZRPRobot, p: ArrayLike, R: ArrayLike | None, q0: ArrayLike,
           tolerance_m: float = TOLERANCE_M, tolerance_rad: float = TOLERANCE_RAD) -> Solution:  # fmt: skip
     """Joint values within the limits that put ``robot``'s hand on position ``p`` (3,) m and,
-    if given, orientation ``R`` (3, 3): ``scipy.optimize.least_squares`` (trust-region
-    reflective, the limits as bounds) from ``q0`` (n,). The residual is ``[p(q) - p;
+    if given, orientation ``R`` (3, 3), from ``q0`` (n,). The residual is ``[p(q) - p;
     ORIENTATION_LENGTH_M log(R(q) R^T)]``, its Jacobian the geometric one mapped through the
-    inverse left Jacobian of SO(3)."""
+    inverse left Jacobian of SO(3). Gauss-Newton steps (least-norm ``numpy.linalg.lstsq``, as
+    long as each lowers the residual and stays within the limits) reach a nearby solution in a
+    few steps; anything else goes on with ``scipy.optimize.least_squares`` (trust-region
+    reflective, the limits as bounds), which also says which joints a limit holds."""
     p = np.asarray(p, dtype=float)
     lower, upper = robot.joint_limits.T
     span = upper - lower
@@ -380,14 +384,25 @@ def solve(robot: ZRPRobot, p: ArrayLike, R: ArrayLike | None, q0: ArrayLike,
         phi = so3.log(Rq @ R.T)
         return np.vstack([J[3:], ORIENTATION_LENGTH_M * np.linalg.solve(so3.left_jacobian(phi), J[:3])])
 
-    fit = least_squares(fun, x0, jac=jac, bounds=(lower, upper), method="trf", x_scale="jac",
-                        xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=30 * robot.n)  # fmt: skip
-    q = np.clip(fit.x, lower, upper)
+    q, r = x0, fun(x0)
+    for _ in range(NEWTON_STEPS):
+        if np.linalg.norm(r) <= NEWTON_DONE:
+            break
+        q_new = q + np.linalg.lstsq(jac(q), -r, rcond=None)[0]
+        r_new = fun(q_new)
+        if np.any(q_new < lower) or np.any(q_new > upper) or not np.linalg.norm(r_new) < np.linalg.norm(r):
+            break
+        q, r = q_new, r_new
+    held: tuple[int, ...] = ()
+    if np.linalg.norm(r) > NEWTON_DONE:
+        fit = least_squares(fun, np.clip(q, lower + 1e-9 * span, upper - 1e-9 * span), jac=jac, bounds=(lower, upper),
+                            method="trf", x_scale="jac", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=30 * robot.n)  # fmt: skip
+        q, held = np.clip(fit.x, lower, upper), tuple(int(i) for i in np.flatnonzero(fit.active_mask))
     Rq, pq = kinematics.forward(robot, q)
     dp = float(np.linalg.norm(pq - p))
     dr = 0.0 if R is None else _angle(Rq, R)
     reached = dp <= tolerance_m and dr <= tolerance_rad
-    return Solution(q, reached, dp, dr, tuple(int(i) for i in np.flatnonzero(fit.active_mask)))
+    return Solution(q, reached, dp, dr, held)
 
 
 def _angle(A: Array, B: Array) -> float:
