@@ -1,5 +1,5 @@
 """Compensation: a calibration turned into corrected joint values and corrected Cartesian targets
-for a robot program (docs/model.md, section 8; Albright and Schroer's practical compensation for
+for a robot program (Albright and Schroer's practical compensation for
 off-line programming).
 
 The controller computes joint values from the nominal model; the arm behaves like the
