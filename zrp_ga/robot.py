@@ -20,6 +20,7 @@ import yaml
 from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga import so3
+from zrp_ga.fileio import yaml_text
 
 UNIT_TOL = 1e-9
 # Joint range assumed when a robot states none: revolute rad, prismatic m.
@@ -263,9 +264,7 @@ class ZRPRobot:
 
     def to_yaml(self, path: str | Path | None = None) -> str:
         """YAML text of the robot (floats written exactly); also written to ``path`` if given."""
-        from zrp_ga import records
-
-        text = records.yaml_text(self.to_dict(), sort_keys=False, default_flow_style=None)
+        text = yaml_text(self.to_dict(), sort_keys=False, default_flow_style=None)
         if path is not None:
             Path(path).write_text(text)
         return text

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from zrp_ga.operators import batched
+from zrp_ga.operators.base import batched
 from zrp_ga.problem import CalibrationProblem
 
 Array = NDArray[np.float64]
