@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> dict:
     floor = LM().run(problem, np.random.default_rng(0)).cost
     best = hof[0].fitness.values[0]
     print(f"DEAP eaMuPlusLambda with zrp_ga's operators, {args.generations} generations: best cost {best:.6g} "
-          f"= {best / floor:.4f} x the LM floor {floor:.6g}")  # fmt: skip
+          f"= {best / floor:.6f} x the LM floor {floor:.6g}")  # fmt: skip
     return {"best": best, "floor": floor, "log": log}
 
 

@@ -35,6 +35,7 @@ from zrp_ga.metrics import Judge
 from zrp_ga.operators import subset
 from zrp_ga.problem import CalibrationProblem
 from zrp_ga.problems import Task, half_ranges
+from zrp_ga.problems.measured import MeasuredTask, from_measurements, read_sets
 from zrp_ga.problems.protocol import GeneBlocks, Identifiable, Problem, Repairing, Sampling, SelfJudging
 from zrp_ga.robot import ZRPRobot
 
@@ -276,9 +277,8 @@ class SelectionTask(Task, SelfJudging):
 def _entry(j: Judgement) -> dict[str, Any]:
     out = {"val_rms_mm": j.val_rms_m[1] * 1e3, "val_max_mm": j.val_max_m[1] * 1e3, "param_err": j.param_err[1],
            "fit_rms_mm": j.fit_rms_m * 1e3, "nominal_val_rms_mm": j.val_rms_m[0] * 1e3, "lm_nevals": j.nevals}  # fmt: skip
-    registration = getattr(j.task, "registration", None)  # measured data: registered to these rows
-    if registration is not None:
-        out["registration_rms_mm"] = registration.rms * 1e3
+    if isinstance(j.task, MeasuredTask) and j.task.registration is not None:  # measured: registered to these rows
+        out["registration_rms_mm"] = j.task.registration.rms * 1e3
     return out
 
 
@@ -317,8 +317,6 @@ def simulated(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any
 def measured(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any]:
     """The rows of ``calibration_file`` as candidates, validated on ``validation_file`` (or a
     random ``validation_fraction`` of the rows); each calibration registers to its own rows."""
-    from zrp_ga.problems.measured import from_measurements, read_sets
-
     cand, val = read_sets(robot, seed, c)
     on = lambda rows: from_measurements(robot, cand.subset(rows), val, c, underdetermined=True)
     files = {"calibration": cand.source, "validation": val.source if val is not None else None}
