@@ -9,7 +9,11 @@ that the GA varies a whole generation in a few numpy calls; random numbers come 
 ``numpy.random.Generator`` passed in, drawn for the whole batch at once, and the segment moves
 are small compiled loops. Any other function named in a config, DEAP's own operators
 (``deap.tools.cxBlend``) included, is applied one individual at a time through
-:mod:`zrp_ga.operators.deap_adapter` (slower; for comparison).
+:mod:`zrp_ga.operators.deap_adapter` (slower; for comparison). Whichever it is, :func:`target`
+checks its parameters before any work: known to the function, in range, none missing.
+
+In a DEAP toolbox of your own, on DEAP's list individuals, register them through
+:func:`zrp_ga.deap_tools.for_deap`, which converts the lists and binds the generator.
 """
 
 from __future__ import annotations
