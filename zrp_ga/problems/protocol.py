@@ -84,9 +84,9 @@ class GeneBlocks(Protocol):
 
 
 @runtime_checkable
-class LeastSquares(Protocol):
-    """A weighted residual (``n_rows``,) of one genome and its Jacobian (``n_rows``, K), with
-    ``residual(x + d) ~ residual(x) - jacobian(x) d``."""
+class LeastSquares(Problem, Protocol):
+    """A problem with a weighted residual (``n_rows``,) of one genome and its Jacobian
+    (``n_rows``, K), with ``residual(x + d) ~ residual(x) - jacobian(x) d``."""
 
     n_rows: int
 
