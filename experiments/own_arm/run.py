@@ -10,9 +10,10 @@ Runs the obvious command for the arm given as a DH file (``irb140.yaml``) and as
 then the two other validations (the tracker moved: ``validation_moved.csv`` with
 ``problem.validation_registration=rigid``; a fourth reflector at a known place:
 ``validation_tool_d.csv`` with ``problem.known_tools={D:[0,0,80]}``), and checks each run's
-calibrated URDF with yourdfpy (an independent parser): its forward kinematics from ``world``
-to ``hand`` and the tool transforms of ``calibrated_robot_frames.yaml`` must predict the
-validation points as the run's ``pose_errors.csv`` says. Writes results/own_arm.md. Make the
+calibrated URDF read back (for the URDF arm: ``irb140.urdf`` with only its joint origins
+changed, plus the base and tool as new fixed joints): its forward kinematics from ``world`` to
+``tool`` and the tool transforms of ``calibrated_robot_frames.yaml`` must predict the validation
+points as the run's ``pose_errors.csv`` says. Writes results/own_arm.md. Make the
 data first (``python experiments/own_arm/make_data.py``). Run:
 
     python experiments/own_arm/run.py [--out DIR]
@@ -29,7 +30,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from zrp_ga import app, config
+from zrp_ga import app, config, kinematics, robot_files
 
 HERE = Path(__file__).parent
 RESULTS = HERE.parent / "results"
@@ -66,21 +67,22 @@ def runs() -> dict[tuple[str, str, str], list[str]]:
 
 def urdf_check(run_dir: Path, summary: dict) -> float:
     """Largest difference (mm) between the validation errors the run reports (``pose_errors.csv``)
-    and those of its calibrated URDF read by yourdfpy (FK world -> hand, then each row's tool
-    transform from the frames file), for validations in the calibration's frame."""
-    import yourdfpy
-
-    urdf = yourdfpy.URDF.load(str(run_dir / "calibrated_robot.urdf"))
+    and those of its calibrated URDF read back (FK world -> tool, back to the hand by the first
+    tool, then each row's tool transform from the frames file), for validations in the
+    calibration's frame."""
+    urdf = robot_files.read_robot(run_dir / "calibrated_robot.urdf", base_link="world", tip_link="tool")
     frames = yaml.safe_load((run_dir / "calibrated_robot_frames.yaml").read_text())
+    first = np.linalg.inv(np.array(frames["tool"]["matrix"]))
     tools = {k: np.array(v["matrix"]) for k, v in frames.get("tools", {"tool": frames["tool"]}).items()}
     val = pd.read_csv(ROOT / summary["problem"]["files"]["validation"])
     reported = pd.read_csv(run_dir / "pose_errors.csv")
     reported = reported[reported["set"] == "validation"].reset_index(drop=True)
-    names = [j for j in urdf.actuated_joint_names]
     worst = 0.0
     for k, row in val.iterrows():
-        urdf.update_cfg(dict(zip(names, np.radians(row[[f"q{i}" for i in range(1, 7)]].to_numpy(dtype=float)))))
-        T = urdf.get_transform("hand", "world") @ tools[row.get("tool", "tool") if len(tools) > 1 else next(iter(tools))]
+        R, p = kinematics.forward(urdf, np.radians(row[[f"q{i}" for i in range(1, 7)]].to_numpy(dtype=float)))
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, p
+        T = T @ first @ tools[row.get("tool", "tool") if len(tools) > 1 else next(iter(tools))]
         err = np.linalg.norm(T[:3, 3] * 1e3 - row[["x", "y", "z"]].to_numpy(dtype=float))
         worst = max(worst, abs(err - reported["calibrated_mm"][k]))
     return worst
