@@ -177,9 +177,10 @@ def calibrated(robot, rng, scale=1e-3):
                          b0=robot.b0 + rng.normal(scale=scale, size=robot.b0.shape), R_h0=turn @ robot.R_h0, normalize=True)  # fmt: skip
 
 
-def assert_urdf_is_the_arm(path, robot, rng, frm, to, joints, before=np.eye(4), after=np.eye(4)):
+def assert_urdf_is_the_arm(path, robot, rng, frm, to, joints, before=None, after=None):
     """FK of the URDF at ``path`` (tests/urdf_reference.py) from link ``frm`` to ``to`` is
-    ``before @ robot(q) @ after`` to 1e-12 m and rad."""
+    ``before @ robot(q) @ after`` (default identities) to 1e-12 m and rad."""
+    before, after = (np.eye(4) if T is None else T for T in (before, after))
     Q = random_q(robot, rng, 10)
     R, p = kinematics.forward(robot, Q)
     for q, Rm, pm in zip(Q, R, p):
