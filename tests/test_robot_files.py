@@ -267,6 +267,9 @@ BAD_URDF = [  # (change to GOOD_URDF), expected message after the path, keyword 
     (('<link name="base"/>', '<link name="base"/><link name="stray"/>'), r": 2 root links \(base, stray\); choose one with base_link$", {}),
     (('xyz="0 0 0.4"', 'xyz="0 0 0.4'), r", line 6, column \d+: malformed XML: ", {}),
     (('<robot name="arm">', '<robot>'), r", line 2: not a URDF: expected <robot name=...> as the root", {}),
+    (('type="prismatic"', 'type="slider"'), r", line 8: joint 'j2': unknown type 'slider' \(URDF joint types: revolute, continuous,", {}),
+    (('<link name="l2"/>', '<link name="l2"/> <link name="l1"/>'), r", line 3: link 'l1': name already used by the link on line 3$", {}),
+    (('<link name="tip"/>', '<link name="tip"/> <link/>'), r", line 3: a <link> without a name$", {}),
 ]
 
 

@@ -271,3 +271,10 @@ def differences_but_added(a, b):
     trimmed = Path(str(b) + ".trimmed")
     tree.write(str(trimmed))
     return differences(a, trimmed)
+
+
+def test_an_arm_whose_joints_are_no_longer_the_files_gets_a_new_urdf(tmp_path, caplog):
+    robot = read_robot(KR6, tip_link="tool0").replace(joint_names=[f"j{i}" for i in range(6)])
+    text = to_urdf(robot)
+    assert "the arm's joints are no longer the file's chain; writing a new URDF instead" in caplog.text
+    assert '<link name="link_1" />' in text and "kuka" not in text

@@ -399,7 +399,7 @@ def write_robot_files(
         dh_to_yaml(table, paths[convention], comment="\n".join([header, *mismatch.notes]))
         if table.beta.any():
             rows = ", ".join(str(i + 1) for i in np.flatnonzero(table.beta))
-            log.warning("%s: rows %s use Hayati's parameterisation (nearly parallel axes; the file's notes say why)",
+            log.warning("%s: row(s) %s use Hayati's parameterisation (nearly parallel axes; the file's notes say why)",
                         paths[convention].name, rows)
     robot.to_yaml(paths["zrp"])
     poses = {"base": base, "tool": tool}

@@ -88,6 +88,26 @@ def urdf_check(run_dir: Path, summary: dict) -> float:
     return worst
 
 
+def urdf_diff(original: Path, calibrated: Path) -> str:
+    """What differs between the user's URDF and the run's calibrated one, element by element
+    (lxml): the changed attributes by joint, then the elements the run added at the end."""
+    from lxml import etree
+
+    a, b = (etree.parse(str(path)).getroot() for path in (original, calibrated))
+    changed: dict[str, list[str]] = {}
+    same = 0
+    for x, y in zip(a.iter(), b.iter()):
+        same += x.attrib == y.attrib
+        if x.tag != y.tag or (x.text or "").strip() != (y.text or "").strip():
+            return f"{calibrated.name}: element <{y.tag}> on line {y.sourceline} differs from the input's"
+        for key in sorted(set(x.attrib) | set(y.attrib)):
+            if x.get(key) != y.get(key):
+                changed.setdefault(x.getparent().get("name"), []).append(f"{x.tag} {key}")
+    added = [f"{e.tag} {e.get('name')}" for e in list(b)[len(a):] if isinstance(e.tag, str)]
+    return ("changed: " + "; ".join(f"{joint}: {', '.join(attrs)}" for joint, attrs in changed.items())
+            + f"; added at the end: {', '.join(added) or 'nothing'}; the other {same} elements (links, limits, comments, ...) as they were")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=None)
@@ -105,12 +125,15 @@ def main() -> None:
         app.run(config.load(over + ["progress=false"]), run_dir)
         s = summaries[key] = json.loads((run_dir / "summary.json").read_text())
         check = f"{urdf_check(run_dir, s):.1e}" if key[1] == "same tracker position" else "n/a"
+        if key[0] == "URDF" and "diff" not in summaries:
+            summaries["diff"] = urdf_diff(HERE / "irb140.urdf", run_dir / "calibrated_robot.urdf")
         shown = " ".join(o for o in over if not o.startswith(("problem=measured", "robot=file", "problem.calibration_file")))
         shown = shown.replace(str(ROOT.resolve()) + "/", "")
         for part in ("calibration", "validation"):
             e = s["position_error_mm"][part]
             lines.append(f"| {key[0]} | {key[1]} | {key[2]} | `{shown}` | {part} | {e['nominal']['poses']} | "
                          f"{fmt(e['nominal'])} | {fmt(e['calibrated'])} | {s['wall_s']:.2f} | {check if part == 'validation' else ''} |")  # fmt: skip
+    diff = summaries.pop("diff")
     lines += ["", "Validation RMS, GA / LM:"]
     for arm in ARM:
         for val in VALIDATIONS:
@@ -124,6 +147,7 @@ def main() -> None:
                                                                   for k, xyz in reg["tools_m"].items()) + ".",
               f"Units found in the files: {first['problem']['units']}. Calibrated DH table's mismatch to the calibrated model: "
               f"{first['calibrated_robot']['dh_mismatch']['position_mm']:.2g} mm, {first['calibrated_robot']['dh_mismatch']['orientation_mrad']:.2g} mrad.",
+              f"The URDF run's calibrated_robot.urdf against irb140.urdf (GA run; lxml, element by element): {diff}.",
               "Warnings of the runs: " + ("; ".join(sorted({w for s in summaries.values() for w in s["warnings"]})) or "none") + ".", ""]  # fmt: skip
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "own_arm.md").write_text("\n".join(lines))
