@@ -220,8 +220,11 @@ def test_the_calibrated_urdf_is_the_input_with_only_the_chains_origins_changed(t
     back = read_robot(paths["urdf"], tip_link="tool0")  # the same axes and hand (points on the axes may slide)
     for field in ("u0", "R_h0"):
         np.testing.assert_allclose(getattr(back, field), getattr(arm, field), atol=1e-12, rtol=0, err_msg=field)
-    # the nominal arm gives the input back, byte for byte
+    # the nominal arm gives the input back, byte for byte, also with the root's start tag over two lines
     assert to_urdf(read_robot(KR6, tip_link="tool0")) == KR6.read_text()
+    split = tmp_path / "split.urdf"
+    split.write_text(KR6.read_text().replace('<robot name="kr6_meshes" ', '<robot\n    name="kr6_meshes"\n    '))
+    assert to_urdf(read_robot(split, tip_link="tool0")) == split.read_text()
 
 
 def test_base_and_tool_go_into_the_users_urdf_as_new_fixed_joints(tmp_path, rng):

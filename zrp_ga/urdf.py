@@ -381,11 +381,12 @@ def _text_around(text: str, root, written: str) -> str:
     """The root element as written, inside the source's own text before and after it (XML
     declaration, comments) and with the source's own start tag (attribute order kept)."""
     lines = text.splitlines(keepends=True)
-    begin = sum(len(line) for line in lines[: root.sourceline - 1]) + lines[root.sourceline - 1].find("<robot")
-    end = text.index(">", begin) + 1
+    begin = text.rfind("<robot", 0, sum(len(line) for line in lines[: root.sourceline]))  # the tag may span lines
     close = text.rfind("</robot>")
-    after = text[close + len("</robot>"):] if close >= 0 else "\n"
-    return text[:end] + written[written.index(">") + 1:] + after
+    if begin < 0 or close < 0:  # not expected (an empty <robot/> has no chain): lxml's own text
+        return '<?xml version="1.0"?>\n' + written + "\n"
+    end = text.index(">", begin) + 1
+    return text[:end] + written[written.index(">") + 1:] + text[close + len("</robot>"):]
 
 
 def _calibrated_frame(nominal: Array, joint: _Joint, point: Array, u: Array) -> Array:
