@@ -382,7 +382,7 @@ def write_robot_files(
     Files in ``out_dir``: ``<stem>.urdf`` (with ``base`` and ``tool`` as fixed joints when given,
     :func:`to_urdf`; an arm read from a URDF goes into that file), ``<stem>_dh.yaml`` and
     ``<stem>_mdh.yaml`` (standard and modified DH, m and deg, the mismatch of :func:`to_dh` and
-    its notes in the header comment; each file with Hayati rows also logs a warning),
+    its notes in the header comment; each file with Hayati rows also says so on the console),
     ``<stem>.yaml`` (ZRP, :meth:`ZRPRobot.to_yaml`) and ``<stem>_frames.yaml``: ``base`` and
     ``tool`` (identity when not given), each as a 4x4 ``matrix``, ``xyz`` (m) and
     ``quaternion_xyzw`` (x, y, z, w: scalar last). The DH and ZRP files hold the arm alone.
@@ -399,7 +399,7 @@ def write_robot_files(
         dh_to_yaml(table, paths[convention], comment="\n".join([header, *mismatch.notes]))
         if table.beta.any():
             rows = ", ".join(str(i + 1) for i in np.flatnonzero(table.beta))
-            log.warning("%s: row(s) %s use Hayati's parameterisation (nearly parallel axes; the file's notes say why)",
+            log.info("%s: row(s) %s use Hayati's parameterisation (nearly parallel axes; the file's notes say why)",
                         paths[convention].name, rows)
     robot.to_yaml(paths["zrp"])
     poses = {"base": base, "tool": tool}
