@@ -68,6 +68,9 @@ class ZRPRobot:
     joint_names: tuple[str, ...] | None = None
     limits: NDArray[np.float64] | None = None
     normalize: dataclasses.InitVar[bool] = False
+    # Where the arm was read from (zrp_ga.urdf.URDFSource for a URDF), so that exports can write
+    # the calibrated arm into that file; kept by replace(), not part of the YAML form.
+    source: object = dataclasses.field(default=None, repr=False)
 
     def __post_init__(self, normalize: bool) -> None:
         u0 = np.array(self.u0, dtype=float) if np.ndim(self.u0) == 2 else None
