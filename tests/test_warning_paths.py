@@ -15,6 +15,10 @@
   traceback (``xfail``, strict: the marks go when this is fixed).
 """
 
+import json
+import subprocess
+import sys
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -105,24 +109,49 @@ def test_validation_worse_than_nominal_is_warned_with_both_rms(tmp_path):
     assert s["returned"] == "optimiser"  # fitted better on the calibration data: kept (module docstring)
 
 
-def test_registration_far_off_names_the_worst_line_and_the_share_of_the_reach(tmp_path):
+def _far_off_file(tmp_path):
+    """A UR10 file whose joint 2 values are 0.2 rad off the robot file's zero (mm, rad), its
+    joint values as written, and the points."""
     rng = np.random.default_rng(7)
     arm = robots.get("ur10")
     q = random_joints(arm, 40, rng)
     wrong = q.copy()
-    wrong[:, 1] += 0.2  # the file's zero of joint 2 is 0.2 rad off the robot file's
+    wrong[:, 1] += 0.2
     df = pd.DataFrame(wrong, columns=[f"q{i}" for i in range(1, 7)])
     df[["x", "y", "z"]] = _points(arm, q) * 1e3
     df.to_csv(tmp_path / "cal.csv", index=False)
-    _, errors = _register(arm, wrong, _points(arm, q))
+    return tmp_path / "cal.csv", wrong, _points(arm, q)
+
+
+def _far_warning(arm, wrong, P):
+    """The far-registration warning's text from a registration written here (line = row + 2)."""
+    _, errors = _register(arm, wrong, P)
     reach = float(np.linalg.norm(arm.b0[1:], axis=1).sum())
-    assert _rms(errors[:, None]) > 0.02 * reach  # far, by the hand fit
-    c = zrp_ga.calibrate(arm, tmp_path / "cal.csv", algorithm="lm")
-    (far,) = [w for w in c.summary["warnings"] if "off the calibration points" in w]
+    rms = _rms(errors[:, None])
+    assert rms > 0.02 * reach  # far, by the hand fit
     worst = int(np.argmax(errors))
-    assert far.startswith(f"the registered nominal {arm.name} is {_rms(errors[:, None]) * 1e3:.4g} mm RMS off")
-    assert f"more than 2% of its {reach:.3g} m reach; worst: line {worst + 2}, {errors[worst] * 1e3:.4g} mm" in far
-    assert "(read as mm and rad)" in far
+    return (f"the registered nominal {arm.name} is {rms * 1e3:.4g} mm RMS off the calibration points (more than 2% of its "
+            f"{reach:.3g} m reach; worst: line {worst + 2}, {errors[worst] * 1e3:.4g} mm)")  # fmt: skip
+
+
+def test_registration_far_off_names_the_worst_line_and_the_share_of_the_reach(tmp_path):
+    arm = robots.get("ur10")
+    path, wrong, P = _far_off_file(tmp_path)
+    c = zrp_ga.calibrate(arm, path, algorithm="lm")
+    (far,) = [w for w in c.summary["warnings"] if "off the calibration points" in w]
+    assert far.startswith(_far_warning(arm, wrong, P)) and far.endswith("(read as mm and rad)")
+
+
+def test_registration_far_off_on_the_command_line(tmp_path):
+    arm = robots.get("ur10")
+    path, wrong, P = _far_off_file(tmp_path)
+    run = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem=measured", "robot=ur10", f"problem.calibration_file={path}",
+                           "algorithm=lm", "progress=false", f"hydra.run.dir={run}"], capture_output=True, text=True)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    expected = _far_warning(arm, wrong, P)
+    assert expected in proc.stdout + proc.stderr  # on the console
+    assert any(w.startswith(expected) for w in json.loads((run / "summary.json").read_text())["warnings"])
 
 
 def test_a_diverged_result_gives_the_warning_and_the_nominal_arm(perturbed):
