@@ -20,7 +20,9 @@ def __getattr__(name: str) -> Any:
         from zrp_ga.api import calibrate
 
         return calibrate
+    if name == "compensate":  # zrp_ga.compensation: a calibration turned into a corrected program
+        return __import__("zrp_ga.compensation", fromlist=["compensate"]).compensate
     raise AttributeError(f"module 'zrp_ga' has no attribute {name!r}")
 
 
-__all__ = ["calibrate"]
+__all__ = ["calibrate", "compensate"]
