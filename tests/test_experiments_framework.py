@@ -15,7 +15,7 @@ import pytest
 from zrp_ga import app, callbacks, config, robots
 from zrp_ga.callbacks import WALL_CLOCK_COLUMNS
 from zrp_ga.config import ConfigError
-from zrp_ga.hydra_callbacks import read_manifest
+from zrp_ga.run.directory import read_manifest
 
 GROUPS = ["robot", "problem", "algorithm", "population", "selection", "crossover", "mutation", "inversion",
           "rotation", "refine", "experiment"]

@@ -11,6 +11,7 @@ import pandas as pd
 import pytest
 import yaml
 from scipy.spatial.transform import Rotation
+from urdf_reference import urdf_fk
 
 from zrp_ga import app, config, error_model, kinematics, metrics, registration, robot_files, robots
 from zrp_ga.layout import Layout
@@ -104,8 +105,6 @@ def test_registration_finds_the_tool_rotation_from_measured_orientations(rng):
 
 # --- one tool: calibration and the robot files out -------------------------------------------------
 def test_calibration_in_the_instruments_frame_and_the_robot_files_out(tmp_path, rng):
-    import yourdfpy
-
     truth = _true_arm(rng)
     cal, val = _files(tmp_path, rng, truth, n_cal=120, n_val=60)
     s = _run(tmp_path, _over(cal, val, "population.generations=15"))
@@ -123,11 +122,11 @@ def test_calibration_in_the_instruments_frame_and_the_robot_files_out(tmp_path, 
     # the model in the instrument's frame loads back and predicts as reported
     model = ZRPRobot.from_yaml(out / "calibrated_in_instrument.yaml")
     np.testing.assert_allclose(np.linalg.norm(kinematics.forward(model, q)[1] - measured, axis=1) * 1e3, reported, atol=1e-9)
-    # the URDF, read by yourdfpy (an independent parser): world -> tool predicts the same
-    urdf = yourdfpy.URDF.load(str(out / "calibrated_robot.urdf"))
+    # the URDF, read by an independent walk (tests/urdf_reference.py): world -> tool predicts the same
+    names = robots.get("ur10").joint_names
     for k in range(0, 60, 7):
-        urdf.update_cfg(dict(zip(urdf.actuated_joint_names, q[k])))
-        assert np.linalg.norm(urdf.get_transform("tool", "world")[:3, 3] - measured[k]) * 1e3 == pytest.approx(reported[k], abs=1e-9)
+        T = urdf_fk(out / "calibrated_robot.urdf", dict(zip(names, q[k])), "world", "tool")
+        assert np.linalg.norm(T[:3, 3] - measured[k]) * 1e3 == pytest.approx(reported[k], abs=1e-9)
     # base and tool transforms: 4x4 and xyz + quaternion say the same; base @ arm @ tool is the model
     frames = yaml.safe_load((out / "calibrated_robot_frames.yaml").read_text())
     base, tool = (np.array(frames[k]["matrix"]) for k in ("base", "tool"))
@@ -189,8 +188,6 @@ def test_several_tools_share_one_arm_in_the_cost(rng):
 
 
 def test_several_tools_calibrate_one_arm_and_leave_as_robot_files(tmp_path, rng):
-    import yourdfpy
-
     truth = _true_arm(rng)
     cal, val = _files(tmp_path, rng, truth, n_cal=80, n_val=30, tools=TOOLS)
     s = _run(tmp_path, _over(cal, val, "algorithm=lm"))
@@ -205,15 +202,16 @@ def test_several_tools_calibrate_one_arm_and_leave_as_robot_files(tmp_path, rng)
     for a, b in (("A", "B"), ("A", "C")):
         found = base[:3, :3] @ arm.R_h0 @ (tools[b][:3, 3] - tools[a][:3, 3])
         np.testing.assert_allclose(found, true_hand @ (TOOLS[b] - TOOLS[a]), atol=2e-4)
-    # yourdfpy: world -> hand, then each row's tool transform, predicts the validation points as reported
-    urdf = yourdfpy.URDF.load(str(tmp_path / "run" / "calibrated_robot.urdf"))
+    # an independent walk (tests/urdf_reference.py): world -> hand, then each row's tool
+    # transform, predicts the validation points as reported
+    names = robots.get("ur10").joint_names
     data = pd.read_csv(val)
     poses = pd.read_csv(tmp_path / "run" / "pose_errors.csv")
     reported = poses[poses["set"] == "validation"].reset_index(drop=True)
     assert list(reported["tool"]) == list(data["tool"])
     for k in range(0, len(data), 7):
-        urdf.update_cfg(dict(zip(urdf.actuated_joint_names, data.loc[k, [f"q{i}" for i in range(1, 7)]].to_numpy(float))))
-        p = (urdf.get_transform("hand", "world") @ tools[data.loc[k, "tool"]])[:3, 3] * 1e3
+        hand = urdf_fk(tmp_path / "run" / "calibrated_robot.urdf", dict(zip(names, data.loc[k, [f"q{i}" for i in range(1, 7)]].to_numpy(float))), "world", "hand")
+        p = (hand @ tools[data.loc[k, "tool"]])[:3, 3] * 1e3
         assert np.linalg.norm(p - data.loc[k, ["x", "y", "z"]].to_numpy(float)) == pytest.approx(reported["calibrated_mm"][k], abs=1e-8)
 
 

@@ -118,3 +118,58 @@ def test_selections_prefer_low_costs_and_treat_nan_as_worst(rng):
     assert 0.04 * 5000 < counts[0] + counts[3] < 0.09 * 5000
     picks = selection.truncation(costs, 1000, rng, fraction=0.4)
     assert set(picks) == {2, 4}
+
+
+# --- every operator's parameters checked before any work (zrp_ga.operators.build) ---------------
+@pytest.mark.parametrize(
+    "node, key, missing",
+    [({"_target_": "deap.tools.mutGaussian"}, "mutation.op", "mu"),  # DEAP's: mu, sigma, indpb without defaults
+     ({"_target_": "deap.tools.mutGaussian", "mu": 0.0, "sigma": 0.1}, "mutation.op", "indpb"),
+     ({"_target_": "deap.tools.selTournament"}, "selection.op", "tournsize"),
+     ({"_target_": "deap.tools.cxBlend"}, "crossover.op", "alpha")],
+)  # fmt: skip
+def test_a_missing_operator_parameter_is_a_config_error_naming_key_and_parameter(rng, node, key, missing):
+    from zrp_ga import operators
+    from zrp_ga.config import ConfigError
+
+    family = key.split(".")[0]
+    with pytest.raises(ConfigError, match=rf"^{key}\.{missing}: {node['_target_']} needs this parameter"):
+        operators.build(node, key, family, rng, low=LOW, up=UP, blocks=BLOCKS)
+    with pytest.raises(ConfigError, match=rf"^{key}\.{missing}:"):
+        operators.target(node, key)  # what the GA checks when it is built, before any problem exists
+
+
+def test_the_problems_ranges_count_as_given_but_only_where_build_binds_them(rng):
+    from zrp_ga import operators
+    from zrp_ga.config import ConfigError
+
+    node = {"_target_": "deap.tools.mutPolynomialBounded", "eta": 20.0, "indpb": 0.2}  # low, up: the problem's
+    mutate = operators.build(node, "mutation.op", "mutation", rng, low=LOW, up=UP)
+    a = np.zeros((3, K))
+    mutate(a)
+    assert np.all((a >= LOW) & (a <= UP)) and np.any(a != 0.0)
+    with pytest.raises(ConfigError, match=r"^mutation.op.low: deap.tools.mutPolynomialBounded needs this parameter"):
+        operators.build(node, "mutation.op", "mutation", rng)  # no ranges given: nothing would bind them
+
+
+def test_operators_with_every_parameter_build(rng):
+    from zrp_ga import operators
+
+    node = {"_target_": "deap.tools.mutGaussian", "mu": 0.0, "sigma": 0.1, "indpb": 0.5}
+    mutate = operators.build(node, "mutation.op", "mutation", rng, low=LOW, up=UP)
+    a = np.zeros((4, K))
+    mutate(a)
+    assert np.any(a != 0.0)
+
+
+def test_cli_refuses_a_deap_operator_without_its_parameters_before_any_work(tmp_path):
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "mutation.op._target_=deap.tools.mutGaussian",
+                           f"hydra.run.dir={tmp_path}/run", "progress=false"], capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2, proc.stderr
+    assert lines == ["zrp-ga: error: mutation.op.mu: deap.tools.mutGaussian needs this parameter (missing: mu); "
+                     "add +mutation.op.mu=VALUE"], proc.stderr  # fmt: skip
+    assert not (tmp_path / "run").exists()  # refused before the run directory was made

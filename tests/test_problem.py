@@ -137,3 +137,52 @@ def test_position_weights_scale_the_position_rows(rng):
         rows = np.concatenate([((data.p - p) * w).ravel(), -0.5 * (np.sum(u0**2, axis=1) - 1)])
         assert cost == pytest.approx(np.linalg.norm(rows), rel=1e-12)
         np.testing.assert_allclose(prob.residual(g), rows, atol=1e-15)
+
+
+# --- the Problem protocol: a required part, optional parts declared (zrp_ga.problems.protocol) ---
+class Sphere:
+    """A problem with the required part only: ranges, names, a vectorised cost (minimum at 0.3)."""
+
+    def __init__(self, K=7):
+        self.lower, self.upper, self.names = -np.ones(K), np.ones(K), [f"g{k}" for k in range(K)]
+
+    def costs(self, X):
+        return np.sqrt(np.sum((np.atleast_2d(X) - 0.3) ** 2, axis=1))
+
+
+def test_each_problem_kind_has_the_parts_it_declares(rng):
+    from zrp_ga.problems import protocol as pp
+    from zrp_ga.problems.selection import SelectionProblem
+
+    prob, _ = _problem(rng, n_poses=8)
+    parts = (pp.Problem, pp.Sampling, pp.Repairing, pp.GeneBlocks, pp.LeastSquares, pp.Identifiable)
+    has = lambda p: [isinstance(p, part) for part in parts]
+    assert has(prob) == [True, False, False, True, True, True]
+    assert prob.gene_blocks == [(0, 18), (18, 36)]  # the layout's blocks: axes, body vectors
+    assert has(SelectionProblem(prob, k=3)) == [True, True, True, True, False, True]  # no Jacobian on subsets
+    assert has(Sphere()) == [True, False, False, False, False, False]
+
+
+def test_the_algorithms_run_a_problem_with_the_required_part_only():
+    from zrp_ga import config
+    from zrp_ga.algorithms.random_search import RandomSearch
+
+    ga = config.instantiate(config.load(["refine=none", "inversion=block", "rotation=block", "population.mu=30",
+                                         "population.lambda_=30", "population.generations=30"]).algorithm, "algorithm")  # fmt: skip
+    result = ga.run(Sphere(), np.random.default_rng(0))  # one gene block, uniform start, clipped into the ranges
+    assert result.cost < 0.5 * Sphere().costs(np.zeros(7))[0]  # well below the centre's cost (0.79)
+    assert result.cost == pytest.approx(Sphere().costs(result.x)[0])
+    search = RandomSearch(samples=50, batch=10).run(Sphere(), np.random.default_rng(0))
+    assert search.nevals == 50 and np.all(np.abs(search.initial_x) <= 1.0)
+
+
+def test_least_squares_and_the_step_need_a_jacobian():
+    from zrp_ga import config
+    from zrp_ga.algorithms.lm import LM
+    from zrp_ga.config import ConfigError
+
+    with pytest.raises(ConfigError, match="Levenberg-Marquardt needs a residual and its Jacobian"):
+        LM().run(Sphere(), np.random.default_rng(0))
+    ga = config.instantiate(config.load([]).algorithm, "algorithm")  # refine=pinv by default
+    with pytest.raises(ConfigError, match="refine: the pseudo-inverse step needs a calibration problem"):
+        ga.run(Sphere(), np.random.default_rng(0))

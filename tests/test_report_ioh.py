@@ -13,11 +13,11 @@ from zrp_ga import report
 ioh = pytest.importorskip("ioh")
 X = [0.5, -0.25]  # report_fakes' best genome
 
-RUNS = {  # name: (instance, algorithm, convergence rows, initial population costs)
-    "a1": ("zrp-fake-A", "ga", [(4, 2.0), (8, 1.0), (12, 1.0)], [5.0, 2.5, 3.0, 2.0]),
-    "a2": ("zrp-fake-A", "ga", [(4, 3.0), (8, 3.0), (12, 1.5)], [3.0, 4.0, 3.5, 3.25]),
-    "b1": ("zrp-fake-B", "ga", [(4, 6.0), (8, 4.0)], [6.0, 7.0, 8.0, 9.0]),
-    "a3": ("zrp-fake-A", "lm", [(0, 8.0), (1, 8.0), (2, 4.0), (5, 0.5)], [8.0]),
+RUNS = {  # name: (instance, algorithm, convergence rows, initial population costs, seed)
+    "a1": ("zrp-fake-A", "ga", [(4, 2.0), (8, 1.0), (12, 1.0)], [5.0, 2.5, 3.0, 2.0], 0),
+    "a2": ("zrp-fake-A", "ga", [(4, 3.0), (8, 3.0), (12, 1.5)], [3.0, 4.0, 3.5, 3.25], 7),
+    "b1": ("zrp-fake-B", "ga", [(4, 6.0), (8, 4.0)], [6.0, 7.0, 8.0, 9.0], 0),
+    "a3": ("zrp-fake-A", "lm", [(0, 8.0), (1, 8.0), (2, 4.0), (5, 0.5)], [8.0], 3),
 }  # fmt: skip
 
 
@@ -37,7 +37,7 @@ def _replay(trace_e, trace_b, nevals):
 
 def _reference(runs, labels, root):
     """The folder ``ioh.logger.Analyzer`` writes for ``runs``: one logger per configuration,
-    one wrapped problem per instance."""
+    one wrapped problem per instance, each run with its seed as ioh's instance id."""
     for label in dict.fromkeys(labels):
         logger = ioh.logger.Analyzer(root=str(root), folder_name=report.ioh_export.safe_name(label), algorithm_name=label,
                                      algorithm_info="", store_positions=False)  # fmt: skip
@@ -48,13 +48,14 @@ def _reference(runs, labels, root):
             replay = {"costs": iter([])}  # the run being replayed
             ioh.wrap_problem(lambda x, replay=replay: next(replay["costs"]), name=instance,
                              optimization_type=ioh.OptimizationType.MIN, lb=-1, ub=1)  # fmt: skip
-            problem = ioh.get_problem(instance, dimension=2, instance=1)
-            problem.attach_logger(logger)
             for r in mine:
+                problem = ioh.get_problem(instance, dimension=2, instance=r.summary["seed"])
+                problem.attach_logger(logger)
                 replay["costs"] = iter(_replay(r.evals, r.best, r.nevals))
                 for _ in range(r.nevals):
                     problem(np.array(X))
                 problem.reset()
+                problem.detach_logger()
         logger.close()
 
 
@@ -71,8 +72,8 @@ def _records(dat):
 
 
 def test_export_matches_what_ioh_writes(tmp_path):
-    for name, (instance, algorithm, rows, initial) in RUNS.items():
-        fake_run(tmp_path / "runs" / name, instance, algorithm, rows, initial=initial)
+    for name, (instance, algorithm, rows, initial, seed) in RUNS.items():
+        fake_run(tmp_path / "runs" / name, instance, algorithm, rows, initial=initial, seed=seed)
     runs = report.find_runs([tmp_path / "runs"])[0]
     labels, shown = report.configurations(runs)
     assert report.ioh_export.export(runs, labels, shown, tmp_path / "ours") == []
@@ -84,6 +85,7 @@ def test_export_matches_what_ioh_writes(tmp_path):
         a = json.loads((tmp_path / "ours" / mine).read_text())
         b = json.loads((tmp_path / "ioh" / ref).read_text())
         assert set(a) == set(b)
+        assert a["version"] == b["version"]  # the format of the installed ioh
         fid = b["function_id"]
         assert ref.name == mine.name.replace(f"_f{a['function_id']}_", f"_f{fid}_")
         for key in ("function_name", "maximization", "algorithm", "attributes"):
@@ -96,6 +98,9 @@ def test_export_matches_what_ioh_writes(tmp_path):
         records = _records(tmp_path / "ours" / mine.parent / sa["path"])
         assert records == _records(tmp_path / "ioh" / ref.parent / sb["path"])
         assert all(run[0][0] == 1 for run in records)  # every block starts at evaluation 1
+    seeds = {json.loads(p.read_text())["function_name"]: [r["instance"] for r in json.loads(p.read_text())["scenarios"][0]["runs"]]
+             for p in (tmp_path / "ours" / "GA").glob("*.json")}  # fmt: skip
+    assert seeds == {"zrp-fake-A": [0, 7], "zrp-fake-B": [0]}  # one function per instance, its seeds as instance ids
 
 
 def test_the_first_generations_records_by_hand(tmp_path):

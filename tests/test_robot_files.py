@@ -139,7 +139,7 @@ def test_write_robot_files(tmp_path, rng):
     robot = robot.replace(u0=robot.u0 + rng.normal(scale=1e-5, size=(6, 3)), normalize=True)  # calibrated-like
     base, tool = random_pose(rng), random_pose(rng)
     paths = write_robot_files(robot, tmp_path / "out", base=base, tool=tool)
-    assert set(paths) == {"urdf", "dh", "zrp", "frames"} and all(p.is_file() for p in paths.values())
+    assert set(paths) == {"urdf", "dh", "mdh", "zrp", "frames"} and all(p.is_file() for p in paths.values())
     assert_same_robot(read_robot(paths["zrp"]), robot, atol=1e-15)  # ZRPRobot renormalises u0: an ulp
     assert_same_robot(read_robot(paths["urdf"], base_link="base_link", tip_link="hand"), robot)
     whole = read_robot(paths["urdf"])  # world .. tool
@@ -153,9 +153,10 @@ def test_write_robot_files(tmp_path, rng):
         np.testing.assert_allclose(Rw[m], (base @ T @ tool)[:3, :3], atol=1e-12)
     text = paths["dh"].read_text()
     assert re.search(r"^# .*position [0-9.e-]+ m, orientation [0-9.e-]+ rad$", text, re.M)
-    assert "# joint 3 (elbow_joint): axes 2 and 3 are parallel" in text
-    dh_robot = read_robot(paths["dh"])
-    assert np.abs(kinematics.forward(dh_robot, q)[1] - p).max() < 1e-4  # the reported small mismatch
+    assert "# row 2 (shoulder_lift_joint): Hayati's parameterisation" in text  # the nearly parallel axes 2, 3
+    assert "# row 4 (wrist_1_joint): Hayati's parameterisation" in paths["mdh"].read_text()
+    for kind in ("dh", "mdh"):  # exact, Hayati rows read back
+        assert np.abs(kinematics.forward(read_robot(paths[kind]), q)[1] - p).max() < 1e-12
     frames = yaml.safe_load(paths["frames"].read_text())
     for key, T in (("base", base), ("tool", tool)):
         np.testing.assert_allclose(frames[key]["matrix"], T, atol=1e-15)
@@ -266,6 +267,9 @@ BAD_URDF = [  # (change to GOOD_URDF), expected message after the path, keyword 
     (('<link name="base"/>', '<link name="base"/><link name="stray"/>'), r": 2 root links \(base, stray\); choose one with base_link$", {}),
     (('xyz="0 0 0.4"', 'xyz="0 0 0.4'), r", line 6, column \d+: malformed XML: ", {}),
     (('<robot name="arm">', '<robot>'), r", line 2: not a URDF: expected <robot name=...> as the root", {}),
+    (('type="prismatic"', 'type="slider"'), r", line 8: joint 'j2': unknown type 'slider' \(URDF joint types: revolute, continuous,", {}),
+    (('<link name="l2"/>', '<link name="l2"/> <link name="l1"/>'), r", line 3: link 'l1': name already used by the link on line 3$", {}),
+    (('<link name="tip"/>', '<link name="tip"/> <link/>'), r", line 3: a <link> without a name$", {}),
 ]
 
 

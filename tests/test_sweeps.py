@@ -28,9 +28,9 @@ import pandas as pd
 import pytest
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
-from zrp_ga import hydra_callbacks
 from zrp_ga.callbacks import WALL_CLOCK_COLUMNS
-from zrp_ga.hydra_callbacks import read_manifest
+from zrp_ga.run import directory
+from zrp_ga.run.directory import read_manifest
 
 
 # --- composition ------------------------------------------------------------------------------------
@@ -94,35 +94,6 @@ def test_options_that_write_outside_their_package_are_composed_by_hydra(hydra_lo
     """An experiment is a ``_global_`` package: each of its options is Hydra's composition."""
     jobs = [[f"experiment={e}", f"seed={s}"] for e in ("paper_case", "methods_ga") for s in (0, 1)]
     assert _compare_with_hydra(hydra_loader, [], jobs) == 2
-
-
-@pytest.mark.parametrize("overrides", [["seed=3"], ["problem=multipose", "crossover=sbx", "hydra.job.chdir=false"],
-                                       ["experiment=operator_grid"], ["-m"], ["seed=1,2"]], ids=str)
-def test_a_run_composes_its_config_once_to_hydras_own(hydra_loader, overrides):
-    """As ``hydra.main`` does: the mode first, then the config to run (mode MULTIRUN: an
-    experiment that sets it, or ``-m``), once with the first composition kept, once by Hydra."""
-    from hydra.core.global_hydra import GlobalHydra
-    from hydra.types import RunMode
-
-    from hydra_plugins.zrp_ga_launcher._compose import compose_once
-
-    hydra, multirun = GlobalHydra.instance().hydra, overrides == ["-m"] or "seed=1,2" in overrides
-    overrides = [o for o in overrides if o != "-m"]
-    calls = []
-    load = hydra.config_loader.load_configuration
-    hydra.config_loader.load_configuration = lambda *a, **k: calls.append(1) or load(*a, **k)
-    try:
-        with compose_once():
-            mode = hydra.get_mode("config", list(overrides))
-            mode = mode or (RunMode.MULTIRUN if multirun else RunMode.RUN)
-            lines = overrides + ([f"hydra.mode={mode.name}"] if "experiment=operator_grid" not in overrides else [])
-            ours = hydra.compose_config("config", lines, run_mode=mode, with_log_configuration=True)
-    finally:
-        hydra.config_loader.load_configuration = load
-    assert len(calls) == 1
-    theirs = hydra.compose_config("config", lines, run_mode=mode)
-    assert OmegaConf.to_yaml(ours) == OmegaConf.to_yaml(theirs)
-    assert _nodes(ours) == _nodes(theirs)
 
 
 @pytest.mark.slow
@@ -210,12 +181,14 @@ def test_sweep_jobs_equal_single_runs_built_afresh(tmp_path, ours):
 
 
 def test_warm_up_builds_the_base_instance_and_writes_nothing(tmp_path, monkeypatch):
-    from zrp_ga import app, config
+    from zrp_ga import config
+    from zrp_ga.run import execute
+    from zrp_ga.run.shared import Cache
 
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(app, "_instances", {})
-    app.warm_up(config.load(SMALL + ["seed=5"], return_hydra_config=True))
-    assert [json.loads(k)["seed"] for k in app._instances] == [5]
+    cache = Cache()
+    execute.warm_up(config.load(SMALL + ["seed=5"], return_hydra_config=True), cache)
+    assert [json.loads(k)["seed"] for k in cache.instances] == [5]
     assert not list(tmp_path.iterdir())
 
 
@@ -238,9 +211,9 @@ def test_a_sweep_run_again_keeps_its_finished_jobs_and_refuses_another_config(tm
 
 def test_manifest_survives_a_line_cut_by_a_crash(tmp_path):
     (tmp_path / "manifest.jsonl").write_text('{"job": 0, "status": "done", "dir": "0"}\n{"job": 1, "sta')
-    hydra_callbacks.repair(tmp_path)
-    hydra_callbacks._append(tmp_path / "manifest.jsonl", {"job": 2, "status": "done", "dir": "2"})
-    assert [s["job"] for s in hydra_callbacks.job_states(tmp_path)] == [0, 2]
+    directory.repair(tmp_path)
+    directory.record(directory.Sweep(tmp_path, 2, (), "2"), "done")
+    assert [s["job"] for s in directory.job_states(tmp_path)] == [0, 2]
 
 
 # --- killed and started again -----------------------------------------------------------------------

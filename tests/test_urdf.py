@@ -1,15 +1,22 @@
-"""URDF in and out: written URDFs against yourdfpy's forward kinematics, hand-written URDFs
-against transforms computed here with scipy, and DH chains against tests/dh_reference.py."""
+"""URDF in and out: written URDFs against the independent forward kinematics of
+tests/urdf_reference.py, hand-written URDFs against transforms computed here with scipy, DH
+chains against tests/dh_reference.py, and calibrated URDFs diffed against the user's input."""
+
+from pathlib import Path
 
 import numpy as np
 import pytest
-import yourdfpy
 from dh_reference import dh_fk
+from lxml import etree
 from scipy.spatial.transform import Rotation
+from urdf_reference import urdf_fk
 
 from zrp_ga import kinematics, robots
 from zrp_ga.robot import ZRPRobot
-from zrp_ga.robot_files import read_robot, to_urdf
+from zrp_ga.robot_files import read_robot, to_urdf, write_robot_files
+
+KR6 = Path(__file__).parent / "data" / "kr6_meshes.urdf"  # meshes, inertias, flange, tool0, a gripper
+KR6_JOINTS = [f"joint_a{i}" for i in range(1, 7)]
 
 
 def random_dh_arm(rng, types):
@@ -56,22 +63,20 @@ def test_written_urdf_reads_back_to_the_same_zrp_model(tmp_path, rng):
         np.testing.assert_allclose(back.limits, robot.joint_limits, rtol=1e-15)
 
 
-def test_yourdfpy_forward_kinematics_of_the_written_urdf_equal_forward(tmp_path, rng):
+def test_independent_forward_kinematics_of_the_written_urdf_equal_forward(tmp_path, rng):
     for robot in arms(rng):
         base = pose([0.1, -0.2, 0.3], Rotation.from_euler("xyz", [0.2, -0.4, 1.0]))
         tool = pose([0.0, 0.01, 0.12], Rotation.from_euler("xyz", [np.pi / 2, 0.0, 0.3]))
         path = tmp_path / f"{robot.name}.urdf"
         to_urdf(robot, path, base=base, tool=tool)
-        model = yourdfpy.URDF.load(str(path), load_meshes=False)
-        names = [j.name for j in model.actuated_joints]
+        names = robot.joint_names or [f"joint_{i + 1}" for i in range(robot.n)]
         Q = random_q(robot, rng, 10)
         R, p = kinematics.forward(robot, Q)
         for q, Rm, pm in zip(Q, R, p):
-            model.update_cfg(dict(zip(names, q)))
-            hand = model.get_transform("hand", "base_link")
+            hand = urdf_fk(path, dict(zip(names, q)), "base_link", "hand")
             np.testing.assert_allclose(hand[:3, :3], Rm, atol=1e-12)
             np.testing.assert_allclose(hand[:3, 3], pm, atol=1e-12)
-            np.testing.assert_allclose(model.get_transform("tool", "world"), base @ hand @ tool, atol=1e-12)
+            np.testing.assert_allclose(urdf_fk(path, dict(zip(names, q)), "world", "tool"), base @ hand @ tool, atol=1e-12)
 
 
 def test_urdf_of_a_dh_table_reads_as_the_dh_chain(tmp_path, rng):
@@ -161,3 +166,118 @@ def test_reserved_joint_names_are_refused():
 def test_bad_base_transform_is_refused():
     with pytest.raises(ValueError, match="base: not a rigid transform"):
         to_urdf(robots.get("ur10"), base=np.diag([1.0, 1.0, -1.0, 1.0]))
+
+
+# --- a URDF with meshes in, the same URDF calibrated out ---------------------------------------------
+def calibrated(robot, rng, scale=1e-3):
+    """The arm with its axes, body vectors and hand turned and moved by about ``scale`` (rad, m);
+    ``replace`` keeps the URDF it was read from."""
+    turn = Rotation.from_rotvec(rng.normal(scale=scale, size=3)).as_matrix()
+    return robot.replace(u0=robot.u0 + rng.normal(scale=scale, size=robot.u0.shape),
+                         b0=robot.b0 + rng.normal(scale=scale, size=robot.b0.shape), R_h0=turn @ robot.R_h0, normalize=True)  # fmt: skip
+
+
+def assert_urdf_is_the_arm(path, robot, rng, frm, to, joints, before=None, after=None):
+    """FK of the URDF at ``path`` (tests/urdf_reference.py) from link ``frm`` to ``to`` is
+    ``before @ robot(q) @ after`` (default identities) to 1e-12 m and rad."""
+    before, after = (np.eye(4) if T is None else T for T in (before, after))
+    Q = random_q(robot, rng, 10)
+    R, p = kinematics.forward(robot, Q)
+    for q, Rm, pm in zip(Q, R, p):
+        np.testing.assert_allclose(urdf_fk(path, dict(zip(joints, q)), frm, to), before @ pose(pm, Rotation.from_matrix(Rm)) @ after, atol=1e-12)
+
+
+def differences(a, b):
+    """(parent's name, tag, attribute) of every attribute that differs between two XML files
+    with the same elements and comments in the same order (asserted)."""
+    A, B = (list(etree.parse(str(path)).getroot().getroottree().iter()) for path in (a, b))
+    assert [(x.tag, (x.text or "").strip()) for x in A] == [(y.tag, (y.text or "").strip()) for y in B]
+    out = []
+    for x, y in zip(A, B):
+        for key in sorted(set(x.attrib) | set(y.attrib)):
+            if x.get(key) != y.get(key):
+                out.append((x.getparent().get("name"), x.tag, key))
+    return out
+
+
+def test_a_urdf_with_meshes_reads_without_them(rng):
+    robot = read_robot(KR6, tip_link="tool0")  # the gripper's fingers are leaves too
+    assert robot.joint_names == tuple(KR6_JOINTS) and robot.joint_types == "RRRRRR"
+    np.testing.assert_allclose(robot.limits[2], [-2.094, 2.722])
+    assert_urdf_is_the_arm(KR6, robot, rng, "world", "tool0", KR6_JOINTS)
+    assert read_robot(KR6, base_link="base_link", tip_link="link_6").n == 6
+
+
+def test_the_calibrated_urdf_is_the_input_with_only_the_chains_origins_changed(tmp_path, rng):
+    arm = calibrated(read_robot(KR6, tip_link="tool0"), rng)
+    paths = write_robot_files(arm, tmp_path)
+    changed = differences(KR6, paths["urdf"])
+    # the arm's joints and the hand joint (the first fixed joint after the last arm joint) move;
+    # meshes, inertias, limits (velocity 2.5 too), the flange-tool0 joint, the gripper, comments stay
+    assert sorted({(name, tag) for name, tag, _ in changed}) == [(j, "origin") for j in ["joint_a1", "joint_a2", "joint_a3", "joint_a4", "joint_a5", "joint_a6", "joint_a6-flange"]]  # fmt: skip
+    assert 'velocity="2.5"' in paths["urdf"].read_text() and "package://kuka_kr6_support" in paths["urdf"].read_text()
+    assert_urdf_is_the_arm(paths["urdf"], arm, rng, "world", "tool0", KR6_JOINTS)
+    back = read_robot(paths["urdf"], tip_link="tool0")  # the same axes and hand (points on the axes may slide)
+    for field in ("u0", "R_h0"):
+        np.testing.assert_allclose(getattr(back, field), getattr(arm, field), atol=1e-12, rtol=0, err_msg=field)
+    # the nominal arm gives the input back, byte for byte, also with the root's start tag over two lines
+    assert to_urdf(read_robot(KR6, tip_link="tool0")) == KR6.read_text()
+    split = tmp_path / "split.urdf"
+    split.write_text(KR6.read_text().replace('<robot name="kr6_meshes" ', '<robot\n    name="kr6_meshes"\n    '))
+    assert to_urdf(read_robot(split, tip_link="tool0")) == split.read_text()
+
+
+def test_base_and_tool_go_into_the_users_urdf_as_new_fixed_joints(tmp_path, rng):
+    arm = calibrated(read_robot(KR6, base_link="base_link", tip_link="tool0"), rng)
+    base = pose([1.0, 2.0, 0.5], Rotation.from_euler("xyz", [0.1, -0.2, 2.0]))
+    tool = pose([0.0, 0.02, 0.15], Rotation.from_euler("xyz", [0.0, 0.3, 0.0]))
+    out = tmp_path / "with_frames.urdf"
+    to_urdf(arm, out, base=base, tool=tool)
+    # base_link has a parent (world_joint): the base stays in the frames file; the tool is added
+    assert_urdf_is_the_arm(out, arm, rng, "base_link", "tool", KR6_JOINTS, after=tool)
+    arm = calibrated(read_robot(KR6, tip_link="tool0"), rng)  # from the root: world_2 is added above it
+    to_urdf(arm, out, base=base, tool=tool)
+    assert_urdf_is_the_arm(out, arm, rng, "world_2", "tool", KR6_JOINTS, before=base, after=tool)
+    assert "<!-- added by zrp_ga: the calibrated tool frame in the hand frame -->" in out.read_text()
+
+
+def test_calibrated_hand_written_chain_with_prismatic_and_fixed_joints_between(tmp_path, rng):
+    joints = [(name, kind, xyz, rpy, axis[0] if axis else None) for name, kind, xyz, rpy, *axis in HAND_WRITTEN]
+    path = tmp_path / "arm.urdf"
+    path.write_text(urdf_text(joints))
+    arm = calibrated(read_robot(path), rng, scale=1e-2)
+    out = tmp_path / "calibrated.urdf"
+    to_urdf(arm, out)
+    assert {(name, tag) for name, tag, _ in differences(path, out)} <= {(j, "origin") for j in ("turn", "slide", "spin", "flange")}
+    assert_urdf_is_the_arm(out, arm, rng, "l0", "l6", ["turn", "slide", "spin"])
+
+
+def test_a_chain_ending_at_a_movable_joint_gets_the_hand_in_a_new_fixed_joint(tmp_path, rng):
+    joints = [(name, kind, xyz, rpy, axis[0] if axis else None) for name, kind, xyz, rpy, *axis in HAND_WRITTEN[:-1]]
+    path = tmp_path / "arm.urdf"
+    path.write_text(urdf_text(joints))
+    arm = calibrated(read_robot(path), rng, scale=1e-2)
+    out = tmp_path / "calibrated.urdf"
+    to_urdf(arm, out)
+    assert ("spin", "axis", "xyz") in differences_but_added(path, out)
+    assert_urdf_is_the_arm(out, arm, rng, "l0", "calibrated_hand", ["turn", "slide", "spin"])
+
+
+def differences_but_added(a, b):
+    """Like :func:`differences`, after removing from b what zrp_ga added (after its comment)."""
+    tree = etree.parse(str(b))
+    root = tree.getroot()
+    marks = [k for k, e in enumerate(root) if isinstance(e, etree._Comment) and "added by zrp_ga" in e.text]
+    for e in list(root)[marks[0]:] if marks else []:
+        root.remove(e)
+    list(root)[-1].tail = "\n"
+    trimmed = Path(str(b) + ".trimmed")
+    tree.write(str(trimmed))
+    return differences(a, trimmed)
+
+
+def test_an_arm_whose_joints_are_no_longer_the_files_gets_a_new_urdf(tmp_path, caplog):
+    robot = read_robot(KR6, tip_link="tool0").replace(joint_names=[f"j{i}" for i in range(6)])
+    text = to_urdf(robot)
+    assert "the arm's joints are no longer the file's chain; writing a new URDF instead" in caplog.text
+    assert '<link name="link_1" />' in text and "kuka" not in text

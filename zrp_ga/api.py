@@ -92,10 +92,13 @@ def calibrate(
 
     ``algorithm``: ``"ga"``, ``"lm"`` or ``"cmaes"``; ``settings``: any setting of ``zrp-ga``,
     e.g. ``population={"mu": 50, "generations": 30}``, ``crossover="sbx"``,
-    ``problem={"cost": "nonlinear"}``. ``out``: a directory to write the run's files into.
+    ``problem={"cost": "nonlinear"}``. ``out``: a directory to write the run's files into (as
+    ``zrp-ga`` writes them, with the same checks: a directory holding a run is refused).
     """
-    from zrp_ga import app, robots
+    from zrp_ga import robots
     from zrp_ga.problems import measured
+    from zrp_ga.run import build, execute
+    from zrp_ga.run.shared import Cache
 
     over = _overrides(algorithm, seed, settings)
     if data is not None and "problem" not in settings:
@@ -107,10 +110,12 @@ def calibrate(
     else:
         conf = config.section(config.MeasuredConf, {k: v for k, v in cfg.problem.items() if k != "_target_"}, "problem")
         task = measured.from_measurements(arm, _measurements(data, arm, conf), _measurements(validation, arm, conf), conf)
-    prepared = app.Prepared(cfg, task, config.instantiate(cfg.algorithm, "algorithm"), None, Path(out or "."))
-    if out is not None:
-        Path(out).mkdir(parents=True, exist_ok=True)
-    result, summary = app.execute(prepared, None if out is None else Path(out), progress)
+    cache = Cache()  # the instance is the one built here, not the config's
+    prepared = build.prepare(cfg, None if out is None else Path(out), cache=cache, task=task)
+    if out is None:
+        result, summary = execute.execute(prepared, None, progress, cache=cache)
+    else:
+        result, summary = execute.run_prepared(prepared, progress, cache=cache)
     x = np.array([summary["best_genome"][k] for k in task.problem.names])
     return Calibration(task.calibrated_robot(x), result, summary, task)
 

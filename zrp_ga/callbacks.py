@@ -19,7 +19,6 @@ from zrp_ga import checkpoint
 from zrp_ga.algorithms import Algorithm, Callback, Result
 from zrp_ga.metrics import Judge
 
-CONVERGENCE = "convergence.csv"
 COLUMNS = [
     "gen", "nevals", "best", "mean", "median", "std", "worst", "n_nonfinite",
     "val_rms_mm", "val_max_mm", "param_err", "eval_s", "bookkeeping_s", "refine_s", "wall_s",
@@ -145,10 +144,10 @@ class Progress(Callback):
 
 class Checkpoint(Callback):
     """``checkpoint.npz`` every ``every`` generations, after the last one, and on an interrupt
-    (the state after the last finished generation), with the run's config."""
+    (the state after the last finished generation), with the run's config and its groups' options."""
 
-    def __init__(self, path: str | Path, every: int, config: dict):
-        self.path, self.every, self.config = Path(path), every, config
+    def __init__(self, path: str | Path, every: int, config: dict, choices: dict | None = None):
+        self.path, self.every, self.config, self.choices = Path(path), every, config, choices or {}
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
         self.last = algorithm.state()
@@ -160,4 +159,4 @@ class Checkpoint(Callback):
             self.save()
 
     def save(self) -> None:
-        checkpoint.save(self.path, {**self.last, "config": self.config})
+        checkpoint.save(self.path, {**self.last, "config": self.config, "choices": self.choices})

@@ -13,8 +13,6 @@ from pathlib import Path
 
 import numpy as np
 
-NAME = "checkpoint.npz"
-
 
 def save(path: str | Path, state: dict) -> None:
     """Write ``state``: its numpy arrays as arrays, the rest (JSON-able) as JSON."""

@@ -342,6 +342,20 @@ class Config:
     objective: Objective = Objective.final_cost  # what the run returns to a sweeper (zrp_ga.summary.objective)
 
 
+# --- zrp_ga's Hydra launcher (hydra/launcher=zrp_ga; hydra_plugins/zrp_ga_launcher) --------------
+@dataclasses.dataclass
+class ZrpGaLauncherConf:
+    """The settings of zrp_ga's launcher (``hydra.launcher.*``)."""
+
+    _target_: str = "hydra_plugins.zrp_ga_launcher.launcher.ZrpGaLauncher"
+    n_jobs: int = -1  # worker processes; -1: one per core this process may use
+    batch_size: int = 1  # jobs handed to a worker at a time (it holds two batches, so it never waits)
+    start_method: Optional[str] = None  # multiprocessing's: null is fork on Linux, spawn elsewhere
+    cached_composition: bool = True  # job configs from a few of Hydra's compositions (equal to Hydra's)
+    warm_up: Optional[str] = "zrp_ga.run.execute.warm_up"  # called with the sweep's config before the first job
+    table_every_s: float = 1.0  # manifest.csv rewritten at most this often (and at the end)
+
+
 # Stored at the root of the config tree, not in a group, so that they are no options of their own
 # (a group option extends one with ``- /ga_schema@_here_`` in its defaults list).
 SCHEMAS = {"config_schema": Config, "ga_schema": GAConf, "lm_schema": LMConf, "cmaes_schema": CMAESConf,
@@ -357,6 +371,7 @@ def register() -> None:
     cs = ConfigStore.instance()
     for name, node in SCHEMAS.items():
         cs.store(name=name, node=node)
+    cs.store(group="hydra/launcher", name="zrp_ga", node=ZrpGaLauncherConf, provider="zrp_ga")
 
 
 def _enums(cls: type, data: dict, key: str) -> dict:

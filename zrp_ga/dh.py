@@ -2,10 +2,14 @@
 
 Conventions (lengths m, angles rad); a revolute joint adds q_i to theta_i, a prismatic one to d_i:
 
-- ``"dh"`` (standard, distal): ``A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``; joint i turns
-  about the z axis of frame i-1.
-- ``"mdh"`` (modified, proximal, Craig): ``A_i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)``;
-  row i holds ``a_{i-1}, alpha_{i-1}, d_i, theta_i`` and joint i turns about the z axis of frame i.
+- ``"dh"`` (standard, distal): ``A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i) Ry(beta_i)``; joint
+  i turns about the z axis of frame i-1.
+- ``"mdh"`` (modified, proximal, Craig): ``A_i = Rx(alpha_{i-1}) Tx(a_{i-1}) Ry(beta_{i-1}) Rz(theta_i) Tz(d_i)``;
+  row i holds ``a_{i-1}, alpha_{i-1}, beta_{i-1}, d_i, theta_i`` and joint i turns about the z
+  axis of frame i.
+
+``beta`` is Hayati's rotation about y (Hayati and Mirmirani, 1985) for nearly parallel
+consecutive axes; it is 0 in a plain DH table, and a row with ``beta != 0`` is a Hayati row.
 
 The hand pose is ``base A_1(q_1) ... A_n(q_n) tool`` (``base``, ``tool``: 4x4 transforms).
 
@@ -18,11 +22,15 @@ ZRP direction, so that q turns the same way). Choices where the geometry leaves 
 - sign of each common normal: the one that makes ``theta_i`` (the joint value at q = 0) lie in
   (-90, 90] degrees (so ``a`` may be negative, as in Universal Robots' tables); at exactly 90
   degrees, the one with ``a >= 0``;
-- consecutive axes within ``parallel_tol`` rad of parallel: the common normal is not unique (or,
-  when the axes are only nearly parallel, lies far away), so it is taken through the previous
-  frame's origin (``d = 0`` for that row, Craig's and Corke's convention). When such axes are
-  not exactly parallel (a calibrated arm), the part of the tilt that DH cannot express is lost:
-  the table then turns that joint about a slightly different axis, and :func:`to_dh` reports it;
+- consecutive axes within ``parallel_tol`` (default 1 degree) of parallel, or whose common
+  normal would lie farther along the axis than the arm's size (the sum of its body vectors'
+  lengths): the common normal is not unique, or lies metres away on a calibrated arm whose
+  parallel axes are tilted by a fraction of a degree. Such a pair gets Hayati's
+  parameterisation: the next frame's origin is where the second axis crosses the plane through
+  the previous frame's origin perpendicular to the first (``d = 0``, Craig's and Corke's
+  convention for parallel axes), and ``beta`` tilts z onto the second axis. Exactly parallel
+  axes get ``beta = 0``, a plain DH row; every row with ``beta != 0`` is named in
+  :attr:`DHMismatch.notes`. The table stays exact and its lengths those of the arm;
 - last frame: standard DH puts frame n's origin at the end point and its z axis along the hand's
   z axis where DH allows; modified DH puts frame n on axis n at the foot of the perpendicular
   from the end point. ``tool`` holds the rest of the hand pose.
@@ -41,6 +49,7 @@ from zrp_ga.robot import ZRPRobot
 
 Array = NDArray[np.float64]
 CONVENTIONS = ("dh", "mdh")
+PARALLEL_TOL = np.radians(1.0)  # consecutive axes closer to parallel get Hayati rows (rad)
 _EPS_M = 1e-12  # lengths below this are zero (m)
 
 
@@ -50,7 +59,8 @@ class DHTable:
 
     ``a``, ``alpha``, ``d``, ``theta``: (n,) m, rad, m, rad (row i as in the module docstring;
     ``theta`` is the joint angle at q = 0 of a revolute joint and the fixed angle of a
-    prismatic one); ``base``, ``tool``: (4, 4); ``limits``: (n, 2) or None (defaults).
+    prismatic one); ``base``, ``tool``: (4, 4); ``limits``: (n, 2) or None (defaults);
+    ``beta``: (n,) rad, Hayati's tilts (None: all 0).
 
     >>> t = DHTable("dh", a=[1.0], alpha=[0.0], d=[0.0], theta=[0.0], joint_types="R")
     >>> np.round(t.forward([np.pi / 2])[:3, 3], 12)
@@ -68,19 +78,22 @@ class DHTable:
     name: str = "robot"
     joint_names: tuple[str, ...] | None = None
     limits: Array | None = None
+    beta: Array | None = None
 
     def __post_init__(self) -> None:
         if self.convention not in CONVENTIONS:
             raise ValueError(f"convention: {self.convention!r}, expected one of {', '.join(CONVENTIONS)}")
         n = len(self.joint_types)
-        for field in ("a", "alpha", "d", "theta"):
+        if self.beta is None:
+            object.__setattr__(self, "beta", np.zeros(n))
+        for field in ("a", "alpha", "d", "theta", "beta"):
             value = np.array(getattr(self, field), dtype=float)
             if value.shape != (n,) or not np.all(np.isfinite(value)):
                 raise ValueError(f"{field}: expected {n} finite numbers, got {getattr(self, field)!r}")
             object.__setattr__(self, field, value)
         robot = self.to_robot()  # validates types, names, limits, base and tool the ZRP way
         object.__setattr__(self, "joint_names", robot.joint_names)
-        for field in ("a", "alpha", "d", "theta", "base", "tool", "limits"):
+        for field in ("a", "alpha", "d", "theta", "beta", "base", "tool", "limits"):
             value = getattr(robot, field) if field == "limits" else np.array(getattr(self, field), dtype=float)
             if value is not None:
                 value.setflags(write=False)
@@ -92,12 +105,26 @@ class DHTable:
         return len(self.joint_types)
 
     def to_robot(self) -> ZRPRobot:
-        """The ZRP description (exact: docs/model.md, section 1)."""
-        make = ZRPRobot.from_dh if self.convention == "dh" else ZRPRobot.from_mdh
-        return make(
-            d=self.d, a=self.a, alpha=self.alpha, offset=self.theta, joint_types=self.joint_types,
-            tool=self.tool, base=self.base, name=self.name, joint_names=self.joint_names, limits=self.limits,
-        )
+        """The ZRP description (exact: docs/model.md, section 1): the joint axes are the z axes
+        of the frames at q = 0 (frames 0..n-1 for DH, 1..n for modified DH), through their origins."""
+        extra = dict(name=self.name, joint_names=self.joint_names, limits=self.limits)
+        if not self.beta.any():  # a plain table: the robot's own DH reading
+            make = ZRPRobot.from_dh if self.convention == "dh" else ZRPRobot.from_mdh
+            return make(d=self.d, a=self.a, alpha=self.alpha, offset=self.theta, joint_types=self.joint_types,
+                        tool=self.tool, base=self.base, **extra)  # fmt: skip
+        frames = [self.base]
+        for i in range(self.n):
+            frames.append(frames[-1] @ _row_link(self.convention, self.row(i)))
+        axis_frames = frames[:-1] if self.convention == "dh" else frames[1:]
+        end = frames[-1] @ self.tool
+        points = np.array([F[:3, 3] for F in axis_frames] + [end[:3, 3]])
+        b0 = np.diff(np.vstack([np.zeros(3), points]), axis=0)
+        u0 = np.array([F[:3, 2] for F in axis_frames])
+        return ZRPRobot(u0=u0, b0=b0, R_h0=end[:3, :3], joint_types=self.joint_types, normalize=True, **extra)
+
+    def row(self, i: int) -> tuple[float, float, float, float, float]:
+        """Row i (from 0): (a, alpha, d, theta, beta)."""
+        return self.a[i], self.alpha[i], self.d[i], self.theta[i], self.beta[i]
 
     def forward(self, q: ArrayLike) -> Array:
         """Hand pose ``base A_1 ... A_n tool`` at joint values q (n,) or (M, n): (4, 4) or (M, 4, 4)."""
@@ -108,7 +135,7 @@ class DHTable:
         for i in range(self.n):
             theta = self.theta[i] + np.where(revolute[i], Q[:, i], 0.0)
             d = self.d[i] + np.where(revolute[i], 0.0, Q[:, i])
-            T = T @ _link(self.convention, theta, d, self.a[i], self.alpha[i])
+            T = T @ _link(self.convention, theta, d, self.a[i], self.alpha[i], self.beta[i])
         T = T @ self.tool
         return T[0] if q.ndim == 1 else T
 
@@ -119,8 +146,8 @@ class DHMismatch:
 
     ``position_m`` and ``orientation_rad``: largest hand position and orientation difference
     between the table's and the arm's forward kinematics over ``samples`` joint values (q = 0
-    and uniform within the joint limits); ``notes``: one line per joint whose axis the table
-    cannot place exactly.
+    and uniform within the joint limits); ``notes``: one line per Hayati row (nearly parallel
+    axes, module docstring) and per joint whose axis the table cannot place exactly.
     """
 
     position_m: float
@@ -136,13 +163,16 @@ class DHMismatch:
 
 
 def to_dh(
-    robot: ZRPRobot, convention: str = "dh", parallel_tol: float = 1e-3, samples: int = 200, seed: int = 0
+    robot: ZRPRobot, convention: str = "dh", parallel_tol: float = PARALLEL_TOL, samples: int = 200, seed: int = 0,
+    max_offset: float | None = None,
 ) -> tuple[DHTable, DHMismatch]:
     """The DH (``"dh"``) or modified-DH (``"mdh"``) table of a ZRP arm and what it misses.
 
-    Choices are those of the module docstring; ``parallel_tol`` (rad) decides which consecutive
-    axes count as parallel. The mismatch is measured at q = 0 and ``samples - 1`` joint values
-    drawn uniformly within ``robot.joint_limits`` (``numpy.random.default_rng(seed)``).
+    Choices are those of the module docstring; consecutive axes within ``parallel_tol`` (rad) of
+    parallel, or whose common normal lies farther than ``max_offset`` (m; default: the arm's
+    size, the sum of its body vectors' lengths) along the axis, get Hayati rows. The
+    mismatch is measured at q = 0 and ``samples - 1`` joint values drawn uniformly within
+    ``robot.joint_limits`` (``numpy.random.default_rng(seed)``).
 
     >>> from zrp_ga import robots
     >>> table, mismatch = to_dh(robots.get("puma560"))
@@ -155,15 +185,16 @@ def to_dh(
     hand = np.eye(4)
     hand[:3, :3], hand[:3, 3] = robot.R_h0, points[-1]
     walk = _walk_dh if convention == "dh" else _walk_mdh
-    base, rows, axis_frames = walk(points, robot.u0, hand, parallel_tol)
-    a, alpha, d, theta = _tidy(np.array(rows).T)
+    size = float(np.linalg.norm(robot.b0, axis=1).sum()) if max_offset is None else max_offset
+    base, rows, axis_frames, far = walk(points, robot.u0, hand, parallel_tol, size)
+    a, alpha, d, theta, beta = _tidy(np.array(rows).T)
     table = DHTable(
         convention, a, alpha, d, theta, robot.joint_types, base=_tidy(base), name=robot.name,
-        joint_names=robot.joint_names, limits=robot.limits,
+        joint_names=robot.joint_names, limits=robot.limits, beta=beta,
     )
     last = table.forward(np.zeros(robot.n))  # frame n of the tidied table
     table = dataclasses.replace(table, tool=_tidy(np.linalg.inv(last) @ hand))
-    notes = _axis_notes(robot, axis_frames[:-1], parallel_tol)
+    notes = _hayati_notes(robot, table, far) + _axis_notes(robot, axis_frames[:-1])
     return table, _mismatch(robot, table, samples, seed, notes)
 
 
@@ -174,57 +205,120 @@ def _tidy(x: Array) -> Array:
 
 
 # --- the walk along the axes at q = 0 ------------------------------------------------------------
-def _walk_dh(points: Array, u0: Array, hand: Array, tol: float) -> tuple[Array, list, list[Array]]:
+def _walk_dh(
+    points: Array, u0: Array, hand: Array, tol: float, size: float
+) -> tuple[Array, list, list[Array], dict[int, float]]:
     """Standard DH: frame i-1 has z along axis i; frame i sits on axis i+1 where the common
-    normal from axis i meets it. Each row is read off against the table's own previous frame,
-    so that a row that is not exact does not shift the later ones. Returns the base frame, the
-    rows (a, alpha, d, theta) and the table's frames 0..n (world, q = 0)."""
+    normal from axis i meets it, or (Hayati row, nearly parallel axes) where axis i+1 crosses
+    the plane through frame i-1's origin perpendicular to axis i. Each row is read off against
+    the table's own previous frame, so that a row that is not exact does not shift the later
+    ones. Returns the base frame, the rows (a, alpha, d, theta, beta), the table's frames 0..n
+    (world, q = 0) and, for each Hayati row (index from 0), how far away the common normal was."""
     n = len(u0)
     T = _base_frame(points[0], u0[0])
-    frames, rows = [T], []
+    frames, rows, far = [T], [], {}
     for i in range(n):
-        if i < n - 1:
-            o, z, x = T[:3, 3], T[:3, 2], T[:3, 0]
-            _, foot, normal = _common_normal(o, z, points[i + 1], u0[i + 1], o, x, tol)
-            target = _frame(foot, normal, u0[i + 1])
+        if i == n - 1:
+            rows.append((*_dh_row(np.linalg.inv(T) @ _dh_end_frame(T, hand)), 0.0))
         else:
-            target = _dh_end_frame(T, hand)
-        rows.append(_dh_row(np.linalg.inv(T) @ target))
+            o, z, x = T[:3, 3], T[:3, 2], T[:3, 0]
+            away = _normal_distance(o, z, points[i + 1], u0[i + 1])
+            if _line_angle(z, u0[i + 1]) < tol or away > size:
+                cross = _crossing(o, z, points[i + 1], u0[i + 1])
+                normal = _normal_towards(cross - o, x)
+                theta = np.arctan2(np.dot(normal, T[:3, 1]), np.dot(normal, x))
+                M = T @ _row_link("dh", (np.dot(cross - o, normal), 0.0, 0.0, theta, 0.0))
+                alpha, beta = _tilt(M, u0[i + 1])
+                rows.append((np.dot(cross - o, normal), alpha, 0.0, theta, beta))
+                far[i] = away
+            else:
+                _, foot, normal = _common_normal(o, z, points[i + 1], u0[i + 1], o, x, 0.0)
+                rows.append((*_dh_row(np.linalg.inv(T) @ _frame(foot, normal, u0[i + 1])), 0.0))
         T = T @ _row_link("dh", rows[-1])
         frames.append(T)
-    return frames[0], rows, frames
+    return frames[0], rows, frames, far
 
 
-def _walk_mdh(points: Array, u0: Array, hand: Array, tol: float) -> tuple[Array, list, list[Array]]:
-    """Modified DH: frame i sits on axis i where the common normal to axis i+1 leaves it. Row i
-    first reaches axis i from frame i-1 (``Rx(alpha_{i-1}) Tx(a_{i-1})``, as well as that can when
-    the previous pair was only nearly parallel), and frame i is placed on the axis so reached.
-    Returns the base frame, the rows (a_{i-1}, alpha_{i-1}, d_i, theta_i) and the table's frames
-    1..n followed by frame n again (the one the tool hangs on), world, q = 0."""
+def _walk_mdh(
+    points: Array, u0: Array, hand: Array, tol: float, size: float
+) -> tuple[Array, list, list[Array], dict[int, float]]:
+    """Modified DH: frame i sits on axis i where the common normal to axis i+1 leaves it, or
+    (nearly parallel axes i, i+1: a Hayati row i+1) where the previous row reached axis i, with
+    x towards where axis i+1 crosses the plane through it perpendicular to axis i. Row i first
+    reaches axis i from frame i-1 (``Rx(alpha_{i-1}) Tx(a_{i-1}) Ry(beta_{i-1})``, beta only in a
+    Hayati row, as well as that can when the previous pair was only nearly parallel), and frame
+    i is placed on the axis so reached. Returns the base frame, the rows (a_{i-1}, alpha_{i-1},
+    d_i, theta_i, beta_{i-1}), the table's frames 1..n followed by frame n again (the one the
+    tool hangs on), world, q = 0, and, for each Hayati row (index from 0), how far away the
+    common normal was."""
     n = len(u0)
     T = _base_frame(points[0], u0[0])
-    base, frames, rows = T, [], []
+    base, frames, rows, far = T, [], [], {}
     for i in range(n):
-        p, z = _mdh_reach(T, points[i], u0[i])  # p: where the previous normal meets axis i
-        if i < n - 1:
-            foot, _, normal = _common_normal(p, z, points[i + 1], u0[i + 1], p, T[:3, 0], tol)
-        else:
+        reach = _mdh_reach(T, points[i], u0[i], hayati=i - 1 in far)  # (a, alpha, 0, 0, beta)
+        M = T @ _row_link("mdh", reach)
+        p, z = M[:3, 3], M[:3, 2]  # where the previous row meets axis i
+        if i == n - 1:
             foot = p + np.dot(hand[:3, 3] - p, z) * z
             normal = _end_normal(hand[:3, 3] - foot, z, T[:3, 0], hand)
-        rows.append(_mdh_row(np.linalg.inv(T) @ _frame(foot, normal, z)))
+        else:
+            away = _normal_distance(p, z, points[i + 1], u0[i + 1])
+            if _line_angle(z, u0[i + 1]) < tol or away > size:
+                foot, normal = p, _normal_towards(_crossing(p, z, points[i + 1], u0[i + 1]) - p, T[:3, 0])
+                far[i] = away
+            else:
+                foot, _, normal = _common_normal(p, z, points[i + 1], u0[i + 1], p, T[:3, 0], 0.0)
+        rel = np.linalg.inv(M) @ _frame(foot, normal, z)  # Rz(theta) Tz(d)
+        if i - 1 in far:
+            rows.append((reach[0], reach[1], rel[2, 3], np.arctan2(rel[1, 0], rel[0, 0]), reach[4]))
+        else:
+            rows.append((*_mdh_row(np.linalg.inv(T) @ _frame(foot, normal, z)), 0.0))
         T = T @ _row_link("mdh", rows[-1])
         frames.append(T)
-    return base, rows, frames + [T]
+    return base, rows, frames + [T], {i + 1: away for i, away in far.items()}
 
 
-def _mdh_reach(T: Array, point: Array, axis: Array) -> tuple[Array, Array]:
-    """The line ``T Rx(alpha) Tx(a)`` puts its z axis on, with alpha and a chosen to reach the
-    line (point, axis) (exactly when that line is perpendicular to T's x axis): origin, direction."""
-    z = T[:3, :3].T @ axis
+def _mdh_reach(T: Array, point: Array, axis: Array, hayati: bool) -> tuple[float, float, float, float, float]:
+    """The row (a, alpha, 0, 0, beta) whose ``T Rx(alpha) Tx(a) Ry(beta)`` puts its z axis on the
+    line (point, axis): exactly when that line meets T's x axis (beta: a Hayati row) or, with
+    beta = 0, when it is also perpendicular to it."""
     o, x = T[:3, 3], T[:3, 0]
     a = np.dot(_closest_point(o, x, point, axis) - o, x)
-    M = T @ _row_link("mdh", (a, np.arctan2(-z[1], z[2]), 0.0, 0.0))
-    return M[:3, 3], M[:3, 2]
+    z = T[:3, :3].T @ axis
+    if not hayati:
+        return a, np.arctan2(-z[1], z[2]), 0.0, 0.0, 0.0
+    alpha, beta = _tilt(T, axis)
+    return a, alpha, 0.0, 0.0, beta
+
+
+def _tilt(M: Array, axis: Array) -> tuple[float, float]:
+    """(alpha, beta) with ``Rx(alpha) Ry(beta)`` turning M's z axis onto ``axis``."""
+    z = M[:3, :3].T @ axis
+    return np.arctan2(-z[1], z[2]), np.arcsin(np.clip(z[0], -1.0, 1.0))
+
+
+def _line_angle(u1: Array, u2: Array) -> float:
+    """Angle between two lines (rad, 0 to pi/2): parallel and anti-parallel axes alike."""
+    return float(np.arctan2(np.linalg.norm(np.cross(u1, u2)), abs(np.dot(u1, u2))))
+
+
+def _normal_distance(o: Array, z: Array, point: Array, axis: Array) -> float:
+    """How far along line (o, z) from o its common normal with line (point, axis) leaves it
+    (inf for exactly parallel lines)."""
+    c = np.cross(z, axis)
+    if np.dot(c, c) == 0.0:
+        return np.inf
+    return abs(np.dot(_closest_point(o, z, point, axis) - o, z))
+
+
+def _crossing(o: Array, z: Array, point: Array, axis: Array) -> Array:
+    """Where line (point, axis) crosses the plane through o perpendicular to z."""
+    return point + np.dot(o - point, z) / np.dot(axis, z) * axis
+
+
+def _normal_towards(r: Array, x_prev: Array) -> Array:
+    """Unit x along r (sign as for common normals), or x_prev when r is zero."""
+    return _signed(r / np.linalg.norm(r), x_prev, r) if np.linalg.norm(r) > _EPS_M else x_prev
 
 
 def _base_frame(point: Array, axis: Array) -> Array:
@@ -330,22 +424,24 @@ def _mdh_row(rel: Array) -> tuple[float, float, float, float]:
     return t[0], alpha, -s * t[1] + c * t[2], theta
 
 
-def _row_link(convention: str, row: tuple[float, float, float, float]) -> Array:
-    """(4, 4) transform of one row (a, alpha, d, theta) at q = 0."""
-    a, alpha, d, theta = row
-    return _link(convention, np.array([theta]), np.array([d]), a, alpha)[0]
+def _row_link(convention: str, row: tuple[float, ...]) -> Array:
+    """(4, 4) transform of one row (a, alpha, d, theta[, beta]) at q = 0."""
+    a, alpha, d, theta, *beta = row
+    return _link(convention, np.array([theta]), np.array([d]), a, alpha, beta[0] if beta else 0.0)[0]
 
 
-def _link(convention: str, theta: Array, d: Array, a: float, alpha: float) -> Array:
+def _link(convention: str, theta: Array, d: Array, a: float, alpha: float, beta: float = 0.0) -> Array:
     """(M, 4, 4) link transforms for M values of theta and d (arrays of shape (M,))."""
+    const = lambda v: np.full_like(d, v)
+    tilt = _rot(1, const(beta)) if beta else np.eye(4)
     if convention == "dh":
-        return _rot(2, theta) @ _shift(2, d) @ _shift(0, np.full_like(d, a)) @ _rot(0, np.full_like(d, alpha))
-    return _rot(0, np.full_like(d, alpha)) @ _shift(0, np.full_like(d, a)) @ _rot(2, theta) @ _shift(2, d)
+        return _rot(2, theta) @ _shift(2, d) @ _shift(0, const(a)) @ _rot(0, const(alpha)) @ tilt
+    return _rot(0, const(alpha)) @ _shift(0, const(a)) @ tilt @ _rot(2, theta) @ _shift(2, d)
 
 
 def _rot(axis: int, angle: Array) -> Array:
-    """(M, 4, 4) rotations by ``angle`` (M,) rad about coordinate axis 0 (x) or 2 (z)."""
-    j, k = [(1, 2), None, (0, 1)][axis]
+    """(M, 4, 4) rotations by ``angle`` (M,) rad about coordinate axis 0 (x), 1 (y) or 2 (z)."""
+    j, k = [(1, 2), (2, 0), (0, 1)][axis]
     T = np.tile(np.eye(4), (len(angle), 1, 1))
     T[:, j, j] = T[:, k, k] = np.cos(angle)
     T[:, k, j], T[:, j, k] = np.sin(angle), -np.sin(angle)
@@ -360,9 +456,27 @@ def _shift(axis: int, length: Array) -> Array:
 
 
 # --- what the table misses ----------------------------------------------------------------------
-def _axis_notes(robot: ZRPRobot, axis_frames: Sequence[Array], tol: float) -> tuple[str, ...]:
+def _hayati_notes(robot: ZRPRobot, table: DHTable, far: dict[int, float]) -> tuple[str, ...]:
+    """One line per Hayati row with beta != 0: which axes, how far from parallel, and why."""
+    names = robot.joint_names or [f"joint_{i + 1}" for i in range(robot.n)]
+    notes = []
+    for i, away in sorted(far.items()):
+        if table.beta[i] == 0.0:
+            continue  # exactly parallel: a plain DH row
+        k = i if table.convention == "dh" else i - 1  # the pair of axes k+1, k+2 (from 1)
+        angle = np.degrees(_line_angle(robot.u0[k], robot.u0[k + 1]))
+        normal = f"their common normal lies {away:.3g} m along axis {k + 1}" if np.isfinite(away) else "parallel"
+        notes.append(
+            f"row {i + 1} ({names[i]}): Hayati's parameterisation (beta = {np.degrees(table.beta[i]):.4g} deg about y, "
+            f"d{'' if table.convention == 'dh' else f'_{k + 1}'} = 0): axes {k + 1} and {k + 2} are {angle:.3g} deg "
+            f"from parallel ({normal})"
+        )
+    return tuple(notes)
+
+
+def _axis_notes(robot: ZRPRobot, axis_frames: Sequence[Array]) -> tuple[str, ...]:
     """One line per joint whose table axis (z of ``axis_frames[i]`` at q = 0) differs from the
-    robot's by more than 1e-12 rad or (revolute joints) 1e-12 m."""
+    robot's by more than 1e-12 rad or (revolute joints) 1e-12 m (not expected: a safeguard)."""
     points = np.cumsum(robot.b0, axis=0)
     names = robot.joint_names or [f"joint_{i + 1}" for i in range(robot.n)]
     notes = []
@@ -372,8 +486,7 @@ def _axis_notes(robot: ZRPRobot, axis_frames: Sequence[Array], tol: float) -> tu
         dist = 0.0 if robot.joint_types[i] == "P" else np.linalg.norm(r - np.dot(r, robot.u0[i]) * robot.u0[i])
         if angle > 1e-12 or dist > 1e-12:
             notes.append(
-                f"joint {i + 1} ({names[i]}): axes {i} and {i + 1} are parallel within {tol:g} rad but not "
-                f"exactly, which DH cannot express: the table's axis {i + 1} is off by {angle:.3g} rad, {dist:.3g} m"
+                f"joint {i + 1} ({names[i]}): the table's axis {i + 1} is off by {angle:.3g} rad, {dist:.3g} m"
             )
     return tuple(notes)
 

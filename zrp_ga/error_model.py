@@ -19,7 +19,6 @@ more null directions per prismatic joint. :func:`identifiability` names all of t
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -27,10 +26,8 @@ from numpy.typing import ArrayLike, NDArray
 from zrp_ga import so3
 from zrp_ga._numba import jit
 from zrp_ga.kinematics import check_q
+from zrp_ga.layout import Layout, parameter_names  # noqa: F401 (parameter_names: the Jacobian's columns, named here as before)
 from zrp_ga.robot import ZRPRobot
-
-if TYPE_CHECKING:
-    from zrp_ga.layout import Layout
 
 Array = NDArray[np.float64]
 
@@ -44,17 +41,6 @@ def pose_error(R_meas: ArrayLike, p_meas: ArrayLike, R: ArrayLike, p: ArrayLike,
     W = np.asarray(R_meas, dtype=float) @ np.swapaxes(np.asarray(R, dtype=float), -1, -2)
     dr = so3.log(W) if exact else so3.vee(W)
     return dr, np.asarray(p_meas, dtype=float) - np.asarray(p, dtype=float)
-
-
-def parameter_names(n: int, base: bool = False, hand: bool = False) -> list[str]:
-    """Names of the columns of :func:`pose_jacobians`: ``u0_1x .. u0_nz, b0_2x .. b0_{n+1}z`` [``b0_1x..z``, ``rh_x..z``]."""
-    names = [f"u0_{i}{c}" for i in range(1, n + 1) for c in "xyz"]
-    names += [f"b0_{i}{c}" for i in range(2, n + 2) for c in "xyz"]
-    if base:
-        names += [f"b0_1{c}" for c in "xyz"]
-    if hand:
-        names += [f"rh_{c}" for c in "xyz"]
-    return names
 
 
 def pose_jacobians(robot: ZRPRobot, q: ArrayLike, base: bool = False, hand: bool = False) -> Array:

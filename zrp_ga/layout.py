@@ -1,9 +1,9 @@
 """The genome: which parameter errors it holds, and the only path between genomes and models.
 
 A genome is the vector of parameter errors ``x`` (K,) added to a nominal robot, ordered as
-:func:`zrp_ga.error_model.parameter_names`: ``du0_1 .. du0_n, db0_2 .. db0_{n+1}`` (the
-paper's 6n), then optionally ``db0_1`` (``base``) and a small rotation ``dphi_h`` of the hand
-(``hand``: ``R_h0 <- exp([dphi_h]x) R_h0``), then the last body vectors of tools 2..T
+:func:`parameter_names` (also the columns of :func:`zrp_ga.error_model.pose_jacobians`):
+``du0_1 .. du0_n, db0_2 .. db0_{n+1}`` (the paper's 6n), then optionally ``db0_1`` (``base``)
+and a small rotation ``dphi_h`` of the hand (``hand``: ``R_h0 <- exp([dphi_h]x) R_h0``), then the last body vectors of tools 2..T
 (``tools``: several tool points on one hand, laser-tracker practice; tool 1's is ``b0_{n+1}``).
 :meth:`Layout.unpack` turns a population of genomes into model arrays, :meth:`Layout.pack` a
 robot into its genome, :meth:`Layout.robot` a genome into a robot; nothing else converts
@@ -28,10 +28,21 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zrp_ga import error_model
 from zrp_ga.robot import ZRPRobot
 
 Array = NDArray[np.float64]
+
+
+def parameter_names(n: int, base: bool = False, hand: bool = False) -> list[str]:
+    """Names of the parameter errors, also the columns of :func:`zrp_ga.error_model.pose_jacobians`:
+    ``u0_1x .. u0_nz, b0_2x .. b0_{n+1}z`` [``b0_1x..z``, ``rh_x..z``]."""
+    names = [f"u0_{i}{c}" for i in range(1, n + 1) for c in "xyz"]
+    names += [f"b0_{i}{c}" for i in range(2, n + 2) for c in "xyz"]
+    if base:
+        names += [f"b0_1{c}" for c in "xyz"]
+    if hand:
+        names += [f"rh_{c}" for c in "xyz"]
+    return names
 
 
 Vec3 = tuple[float, float, float]
@@ -89,7 +100,7 @@ class Layout:
 
     @property
     def names(self) -> list[str]:
-        names = error_model.parameter_names(self.n, self.base, self.hand)
+        names = parameter_names(self.n, self.base, self.hand)
         return names + [f"b0_{self.n + 1}{c}_tool{k}" for k in range(2, self.n_tools + 1) for c in "xyz"]
 
     @property

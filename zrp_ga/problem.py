@@ -95,6 +95,11 @@ class CalibrationProblem:
     def names(self) -> list[str]:
         return self.layout.names
 
+    @property
+    def gene_blocks(self) -> list[tuple[int, int]]:
+        """The layout's gene blocks as [start, stop) (axes, body vectors, base, hand, tools)."""
+        return [(s.start, s.stop) for s in self.layout.blocks.values()]
+
     # --- a population -----------------------------------------------------------------------
     def costs(self, X: ArrayLike) -> Array:
         """Cost of every genome of X (P, K), (P,); NaN or inf where the genes break the model."""

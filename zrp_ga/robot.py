@@ -20,6 +20,7 @@ import yaml
 from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga import so3
+from zrp_ga.fileio import yaml_text
 
 UNIT_TOL = 1e-9
 # Joint range assumed when a robot states none: revolute rad, prismatic m.
@@ -67,6 +68,9 @@ class ZRPRobot:
     joint_names: tuple[str, ...] | None = None
     limits: NDArray[np.float64] | None = None
     normalize: dataclasses.InitVar[bool] = False
+    # Where the arm was read from (zrp_ga.urdf.URDFSource for a URDF), so that exports can write
+    # the calibrated arm into that file; kept by replace(), not part of the YAML form.
+    source: object = dataclasses.field(default=None, repr=False)
 
     def __post_init__(self, normalize: bool) -> None:
         u0 = np.array(self.u0, dtype=float) if np.ndim(self.u0) == 2 else None
@@ -263,9 +267,7 @@ class ZRPRobot:
 
     def to_yaml(self, path: str | Path | None = None) -> str:
         """YAML text of the robot (floats written exactly); also written to ``path`` if given."""
-        from zrp_ga import records
-
-        text = records.yaml_text(self.to_dict(), sort_keys=False, default_flow_style=None)
+        text = yaml_text(self.to_dict(), sort_keys=False, default_flow_style=None)
         if path is not None:
             Path(path).write_text(text)
         return text

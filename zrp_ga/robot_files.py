@@ -20,6 +20,8 @@
 
 Joint rows: ``type`` R (revolute: the joint angle is ``theta + q``) or P (prismatic: the offset
 along z is ``d + q``, theta fixed); ``a``, ``alpha``, ``d`` required; ``theta`` defaults to 0,
+``beta`` (angle unit) to 0: a row with ``beta`` is a Hayati row for nearly parallel axes, with
+``Ry(beta)`` after ``Rx(alpha)`` (:mod:`zrp_ga.dh`; :func:`to_dh` writes such rows and says why),
 ``name`` to ``joint_<i>``, ``limits`` (lower < upper, in the angle unit for R and the length unit
 for P) to :data:`~zrp_ga.robot.DEFAULT_LIMITS`. ``base`` and ``tool`` take ``xyz`` (length unit, default
 0) with either ``rpy`` (angle unit; URDF's roll-pitch-yaw, ``R = Rz(yaw) Ry(pitch) Rx(roll)``)
@@ -30,8 +32,10 @@ text); beyond 1e4 m or 100 rad they are refused as absurd.
 
 **ZRP YAML**: what :meth:`ZRPRobot.to_yaml` writes (keys ``u0``, ``b0``, ...; metres).
 
-**URDF**: read with yourdfpy and written with ElementTree, the mapping of docs/model.md, section 5;
-see :mod:`zrp_ga.urdf` (its :func:`~zrp_ga.urdf.to_urdf` is re-exported here).
+**URDF**: read with lxml (meshes and visuals are never loaded), the mapping of docs/model.md,
+section 5; an arm read from a URDF is written back into that file with only its calibrated
+joints' origins changed; see :mod:`zrp_ga.urdf` (its :func:`~zrp_ga.urdf.to_urdf` is re-exported
+here).
 
 Every bad input raises ValueError with one line naming the file and the line and column (YAML),
 the line (XML) or the joint, and what is wrong.
@@ -39,6 +43,7 @@ the line (XML) or the joint, and what is wrong.
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import NamedTuple
 
@@ -55,6 +60,7 @@ from zrp_ga.urdf import check_transform, read_urdf, to_urdf
 __all__ = ["DHMismatch", "DHTable", "dh_to_yaml", "read_dh", "read_robot", "to_dh", "to_urdf", "write_robot_files"]
 
 Array = NDArray[np.float64]
+log = logging.getLogger("zrp_ga")
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
 ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180}
 
@@ -199,6 +205,7 @@ def _dh_table(doc: _Yaml) -> DHTable:
     if not isinstance(nodes, yaml.SequenceNode) or not nodes.value:
         raise doc.error(nodes, "joints: expected a list of joint rows, one per joint")
     rows = [_dh_row(doc, node, i, length, angle) for i, node in enumerate(nodes.value)]
+    beta = np.array([row.beta for row in rows])
     names = [row.name for row in rows]
     for i, name in enumerate(names):
         if name in names[:i]:
@@ -212,7 +219,7 @@ def _dh_table(doc: _Yaml) -> DHTable:
     types = "".join(row.type for row in rows)
     try:
         return DHTable(
-            convention, a, alpha, d, theta, types, name=name, joint_names=tuple(names), limits=limits, **poses
+            convention, a, alpha, d, theta, types, name=name, joint_names=tuple(names), limits=limits, beta=beta, **poses
         )
     except ValueError as exc:  # not expected after the checks above; named all the same
         raise doc.error(doc.root, str(exc)) from None
@@ -228,6 +235,7 @@ class _Row(NamedTuple):
     d: float
     theta: float
     limits: Array | None
+    beta: float
 
 
 def _units(doc: _Yaml, node: yaml.Node) -> tuple[float, float]:
@@ -240,20 +248,21 @@ def _units(doc: _Yaml, node: yaml.Node) -> tuple[float, float]:
 
 def _dh_row(doc: _Yaml, node: yaml.Node, i: int, length: float, angle: float) -> _Row:
     """Joint row i of a DH file; ``length``, ``angle``: metres and radians per file unit."""
-    row = doc.mapping(node, f"joint {i + 1}", ("name", "type", "a", "alpha", "d", "theta", "limits"))
+    row = doc.mapping(node, f"joint {i + 1}", ("name", "type", "a", "alpha", "d", "theta", "beta", "limits"))
     name = doc.text(row["name"], f"joint {i + 1}: name") if "name" in row else f"joint_{i + 1}"
     what = f"joint {i + 1} ({name})"
     kind = doc.text(doc.need(row, node, "type", what), f"{what}: type", ("R", "P"))
     a, d = (doc.number(doc.need(row, node, k, what), f"{what}: {k}", length) for k in ("a", "d"))
     alpha = doc.number(doc.need(row, node, "alpha", what), f"{what}: alpha", angle, MAX_ANGLE_RAD)
     theta = doc.number(row["theta"], f"{what}: theta", angle, MAX_ANGLE_RAD) if "theta" in row else 0.0
+    beta = doc.number(row["beta"], f"{what}: beta", angle, MAX_ANGLE_RAD) if "beta" in row else 0.0
     limits = None
     if "limits" in row:
         unit, bound = (angle, MAX_ANGLE_RAD) if kind == "R" else (length, MAX_LENGTH_M)
         limits = doc.numbers(row["limits"], f"{what}: limits", 2, unit, bound)
         if not limits[0] < limits[1]:
             raise doc.error(row["limits"], f"{what}: limits: lower must be below upper")
-    return _Row(name, kind, a, alpha, d, theta, limits)
+    return _Row(name, kind, a, alpha, d, theta, limits, beta)
 
 
 def _pose(doc: _Yaml, node: yaml.Node, what: str, length: float, angle: float) -> Array:
@@ -315,14 +324,20 @@ def dh_to_yaml(
     L, A = LENGTH_UNITS[length], ANGLE_UNITS[angle]
     names = table.joint_names or tuple(f"joint_{i + 1}" for i in range(table.n))
     lines = [f"# {line}" if line else "#" for line in comment.splitlines()]
+    if table.beta.any():
+        link = {"dh": "Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)", "mdh": "Rx(alpha) Tx(a) Ry(beta) Rz(theta) Tz(d)"}
+        lines.append(f"# Rows with beta are Hayati rows (nearly parallel axes): A = {link[table.convention]}")
     head = {"name": table.name, "convention": table.convention, "units": {"length": length, "angle": angle}}
     lines += [records.yaml_text(head, sort_keys=False, default_flow_style=None).rstrip(), "joints:"]
     for i, kind in enumerate(table.joint_types):
         row = {"name": names[i], "type": kind, "a": _short(table.a[i] / L), "alpha": _short(table.alpha[i] / A),
                "d": _short(table.d[i] / L), "theta": _short(table.theta[i] / A)}
+        if table.beta[i]:
+            row["beta"] = _short(table.beta[i] / A)
         if table.limits is not None:
             row["limits"] = _short(np.asarray(table.limits[i]) / (A if kind == "R" else L))
-        lines.append("  - " + records.yaml_text(row, default_flow_style=True, sort_keys=False, width=10**9).strip())
+        line = "  - " + records.yaml_text(row, default_flow_style=True, sort_keys=False, width=10**9).strip()
+        lines.append(line + ("  # Hayati row" if table.beta[i] else ""))
     for key in ("base", "tool"):
         T = getattr(table, key)
         pose = {"xyz": _short(T[:3, 3] / L), "rpy": _short(so3.rpy(T[:3, :3]) / A)}
@@ -362,23 +377,30 @@ def write_robot_files(
     robot: ZRPRobot, out_dir: str | Path, stem: str = "calibrated_robot",
     base: ArrayLike | None = None, tool: ArrayLike | None = None,
 ) -> dict[str, Path]:
-    """Write the arm as URDF, DH table file, ZRP YAML, and the base and tool transforms.
+    """Write the arm as URDF, DH and modified-DH table files, ZRP YAML, and the base and tool transforms.
 
     Files in ``out_dir``: ``<stem>.urdf`` (with ``base`` and ``tool`` as fixed joints when given,
-    :func:`to_urdf`), ``<stem>_dh.yaml`` (standard DH, m and deg, the mismatch of
-    :func:`to_dh` in its header comment), ``<stem>.yaml`` (ZRP, :meth:`ZRPRobot.to_yaml`) and
-    ``<stem>_frames.yaml``: ``base`` and ``tool`` (identity when not given), each as a 4x4
-    ``matrix``, ``xyz`` (m) and ``quaternion_xyzw`` (x, y, z, w: scalar last). The DH and ZRP
-    files hold the arm alone. Returns {"urdf", "dh", "zrp", "frames"} -> path.
+    :func:`to_urdf`; an arm read from a URDF goes into that file), ``<stem>_dh.yaml`` and
+    ``<stem>_mdh.yaml`` (standard and modified DH, m and deg, the mismatch of :func:`to_dh` and
+    its notes in the header comment; each file with Hayati rows also says so on the console),
+    ``<stem>.yaml`` (ZRP, :meth:`ZRPRobot.to_yaml`) and ``<stem>_frames.yaml``: ``base`` and
+    ``tool`` (identity when not given), each as a 4x4 ``matrix``, ``xyz`` (m) and
+    ``quaternion_xyzw`` (x, y, z, w: scalar last). The DH and ZRP files hold the arm alone.
+    Returns {"urdf", "dh", "mdh", "zrp", "frames"} -> path.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = {"urdf": out / f"{stem}.urdf", "dh": out / f"{stem}_dh.yaml",
+    paths = {"urdf": out / f"{stem}.urdf", "dh": out / f"{stem}_dh.yaml", "mdh": out / f"{stem}_mdh.yaml",
              "zrp": out / f"{stem}.yaml", "frames": out / f"{stem}_frames.yaml"}
     to_urdf(robot, paths["urdf"], base, tool)
-    table, mismatch = to_dh(robot)
-    header = f"Standard DH table of {robot.name} (zrp_ga.robot_files.to_dh): {mismatch}"
-    dh_to_yaml(table, paths["dh"], comment="\n".join([header, *mismatch.notes]))
+    for convention, title in (("dh", "Standard DH"), ("mdh", "Modified DH")):
+        table, mismatch = to_dh(robot, convention)
+        header = f"{title} table of {robot.name} (zrp_ga.robot_files.to_dh): {mismatch}"
+        dh_to_yaml(table, paths[convention], comment="\n".join([header, *mismatch.notes]))
+        if table.beta.any():
+            rows = ", ".join(str(i + 1) for i in np.flatnonzero(table.beta))
+            log.info("%s: row(s) %s use Hayati's parameterisation (nearly parallel axes; the file's notes say why)",
+                        paths[convention].name, rows)
     robot.to_yaml(paths["zrp"])
     poses = {"base": base, "tool": tool}
     frames = {k: _frame_entry(np.eye(4) if T is None else check_transform(T, k)) for k, T in poses.items()}

@@ -22,18 +22,18 @@ and tool transforms as 4x4 matrices and as xyz + quaternion; every tool under ``
 
 from __future__ import annotations
 
-import hashlib
 import logging
-import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from zrp_ga import error_model, records, robot_files
 from zrp_ga.algorithms import Result
-from zrp_ga.config import Cost
+from zrp_ga.config import Cost, Objective
 from zrp_ga.problems import Task
+from zrp_ga.run import directory
+from zrp_ga.run.shared import Cache
 
 log = logging.getLogger("zrp_ga")
 
@@ -48,24 +48,19 @@ def model_rank(task: Task) -> int:
     return rank(p.nominal, p.layout, p.data.position_only)
 
 
-def diagnostics(task: Task, first: bool, key: str | None = None) -> dict[str, Any]:
+def diagnostics(task: Task, first: bool, key: str, cache: Cache, sweep: Path | None = None) -> dict[str, Any]:
     """The identifiability of the calibration data, and a warning when it carries less than the
     model could identify (once per sweep and problem instance; not again when resuming).
-    ``key``: the problem instance's key (sweep jobs); the figures are then computed once per
-    instance in this process and once per sweep, which keeps them beside its manifest."""
-    d = _diagnostics.get(key) if key else None
+    ``key``: the problem instance's key; the figures are computed once per instance in this
+    process (``cache``) and once per ``sweep``, which keeps them beside its manifest."""
+    d = cache.diagnostics.get(key)
     if d is None:
-        d = _from_sweep(key, lambda: _compute(task)) if key else _compute(task)
-        if key:
-            _diagnostics[key] = d
-    if d["rank"] < d["model_rank"] and first and _first_in_sweep(task.name):
+        d = cache.diagnostics[key] = directory.shared(sweep, key, lambda: _compute(task), "diagnostics")
+    if d["rank"] < d["model_rank"] and first and directory.first_to_ask(sweep, task.name):
         log.warning("the calibration poses identify %d of the %d parameter combinations the model can identify "
                     "(%d parameters); more poses would help. Unidentifiable:\n  %s", d["rank"], d["model_rank"],
                     d["n_params"], "\n  ".join(d["unidentifiable"]))  # fmt: skip
     return d
-
-
-_diagnostics: dict[str, dict[str, Any]] = {}  # instance key -> diagnostics, in this process
 
 
 def _compute(task: Task) -> dict[str, Any]:
@@ -74,44 +69,20 @@ def _compute(task: Task) -> dict[str, Any]:
             "condition_number": float(report.condition_number), "unidentifiable": list(report.null_directions)}  # fmt: skip
 
 
-def _from_sweep(key: str, compute, what: str = "diagnostics") -> dict[str, Any]:
-    """``compute()``, kept in the sweep directory as ``what`` under ``key``'s hash (outside a
-    sweep: computed)."""
-    import json
-
-    sweep = _sweep_dir()
-    if sweep is None:
-        return compute()
-    path = sweep / ".zrp_ga" / f"{what}-{hashlib.sha1(key.encode()).hexdigest()[:16]}.json"
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError):
-        pass
-    d = compute()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(d))  # floats as repr: read back exactly (inf as Infinity)
-    os.replace(tmp, path)
-    return d
-
-
 ROUND_OFF = 1e-9  # a floor below ROUND_OFF x the nominal cost is round-off (as zrp-ga-report takes it)
 
 
-def floor(task: Task, key: str | None = None) -> dict[str, float]:
+def floor(task: Task, key: str | None = None, cache: Cache | None = None, sweep: Path | None = None) -> dict[str, float]:
     """The instance's floor: Levenberg-Marquardt's final cost from the nominal model (``cost``,
     as zrp-ga-report reads it; its evaluations too), and ``reference`` = max(floor, ROUND_OFF x nominal cost), the cost the
-    objective ``over_floor`` divides by. Computed once per instance in this process and once
-    per sweep (kept beside its manifest, as :func:`diagnostics` is)."""
-    d = _floors.get(key) if key else None
+    objective ``over_floor`` divides by. With ``key``, computed once per instance in this
+    process (``cache``) and once per ``sweep`` (kept beside its manifest, as :func:`diagnostics` is)."""
+    if key is None or cache is None:
+        return _lm_floor(task)
+    d = cache.floors.get(key)
     if d is None:
-        d = _from_sweep(key, lambda: _lm_floor(task), "floor") if key else _lm_floor(task)
-        if key:
-            _floors[key] = d
+        d = cache.floors[key] = directory.shared(sweep, key, lambda: _lm_floor(task), "floor")
     return d
-
-
-_floors: dict[str, dict[str, float]] = {}  # instance key -> floor, in this process
 
 
 def _lm_floor(task: Task) -> dict[str, float]:
@@ -124,43 +95,23 @@ def _lm_floor(task: Task) -> dict[str, float]:
     return {"cost": float(best), "reference": max(float(best), ROUND_OFF * nominal), "lm_nevals": int(lm.nevals)}
 
 
-def over_floor(cfg) -> bool:
-    """Whether ``cfg`` asks for ``objective=over_floor`` (an Enum in a composed config, its
-    string in a checkpoint's)."""
-    value = cfg.get("objective")
-    return getattr(value, "value", value) == "over_floor"
-
-
-def objective(cfg, task: Task, written: dict, key: str | None) -> float:
+def objective(cfg, task: Task, written: dict, key: str, cache: Cache, sweep: Path | None) -> float:
     """What the run returns to a sweeper (``objective``): the final cost, or the final cost over
     the instance's floor's reference (:func:`floor`, then also in ``written`` as ``floor``)."""
-    if over_floor(cfg):
-        written["floor"] = floor(task, key)
+    if cfg.objective is Objective.over_floor:
+        written["floor"] = floor(task, key, cache, sweep)
         return float(written["final_cost"]) / written["floor"]["reference"]
     return float(written["final_cost"])
 
 
-def _sweep_dir() -> Path | None:
-    from hydra.core.hydra_config import HydraConfig
-    from hydra.types import RunMode
+@runtime_checkable
+class SelfJudging(Protocol):
+    """A problem kind whose genomes are not parameter errors (zrp_ga.problems.selection): it
+    judges its own results and tables its own genomes, and has no calibration floor."""
 
-    if not HydraConfig.initialized() or HydraConfig.get().mode != RunMode.MULTIRUN:
-        return None
-    return Path(HydraConfig.get().sweep.dir)
+    def judged(self, result: Result) -> tuple[dict, np.ndarray]: ...
 
-
-def _first_in_sweep(instance: str) -> bool:
-    """True for a single run, and for the first job of a sweep that asks about ``instance``."""
-    sweep = _sweep_dir()
-    if sweep is None:
-        return True
-    marks = sweep / ".zrp_ga"
-    marks.mkdir(parents=True, exist_ok=True)
-    try:
-        os.close(os.open(marks / f"announced-{hashlib.sha1(instance.encode()).hexdigest()[:12]}", os.O_CREAT | os.O_EXCL))
-    except FileExistsError:
-        return False
-    return True
+    def params_table(self, x: np.ndarray) -> list[dict]: ...
 
 
 def worse_than_nominal(result: Result, nominal_cost: float) -> bool:
@@ -224,7 +175,7 @@ def judged(task: Task, result: Result) -> tuple[dict, np.ndarray]:
     genome by name. The genome is gauge-fixed for the nonlinear cost. A problem kind whose
     genomes are not parameter errors judges its own (``task.judged(result)``, e.g.
     zrp_ga.problems.selection)."""
-    if hasattr(task, "judged"):
+    if isinstance(task, SelfJudging):
         return task.judged(result)
     p, judge = task.problem, task.judge
     zero = np.zeros(p.layout.size)
@@ -248,10 +199,10 @@ def judged(task: Task, result: Result) -> tuple[dict, np.ndarray]:
     }, x
 
 
-def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wall_s: float) -> tuple[dict, np.ndarray]:
-    """``summary.json``'s content and the reported genome (:func:`judged`)."""
-    from hydra.core.hydra_config import HydraConfig
-
+def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wall_s: float,
+          choices: dict) -> tuple[dict, np.ndarray]:  # fmt: skip
+    """``summary.json``'s content and the reported genome (:func:`judged`); ``choices``: the
+    config groups' options."""
     j, x = judged(task, result)
     initial = result.initial_costs[np.isfinite(result.initial_costs)]
     initial_best = float(initial.min()) if initial.size else float("nan")
@@ -259,7 +210,7 @@ def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wa
     summary = {
         "instance": task.name,
         "algorithm": resolved["algorithm"]["_target_"].rsplit(".", 1)[-1].lower(),
-        "choices": dict(HydraConfig.get().runtime.choices) if HydraConfig.initialized() else {},
+        "choices": dict(choices),
         "seed": int(cfg.seed),
         "final_cost": j["final_cost"],
         "optimiser_cost": j["optimiser_cost"],
@@ -289,18 +240,18 @@ def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wa
 def write(out: Path, task: Task, result: Result, summary: dict, x: np.ndarray) -> None:
     """The run's files after the optimisation; each warning also on the console."""
     p = task.problem
-    if hasattr(task, "params_table"):  # a problem kind whose genomes are not parameter errors
+    if isinstance(task, SelfJudging):
         params = task.params_table(x)
     else:
         truth = task.truth
         if truth is not None and p.cost is Cost.nonlinear:
             truth = error_model.canonical(p.layout, p.nominal, truth)
         params = records.params_by_joint(p.layout, x, truth)
-    records.write_csv(out / "best_params.csv", params)
-    records.write_csv(out / "initial_population.csv", records.population_table(p.names, result.initial_x, result.initial_costs))
+    records.write_csv(out / directory.BEST_PARAMS, params)
+    records.write_csv(out / directory.INITIAL_POPULATION, records.population_table(p.names, result.initial_x, result.initial_costs))
     task.write(out, x)
     summary["calibrated_robot"] = write_robot(out, task, x)
-    records.write_json(out / "summary.json", summary)
+    records.write_json(out / directory.SUMMARY, summary)
 
 
 def write_robot(out: Path, task: Task, x: np.ndarray, stem: str = "calibrated_robot") -> dict[str, Any]:
@@ -327,16 +278,15 @@ def write_robot(out: Path, task: Task, x: np.ndarray, stem: str = "calibrated_ro
             "base": None if base is None else base.tolist(), "tools": {k: T.tolist() for k, T in tools.items()}}  # fmt: skip
 
 
-def console(out: Path, hc, multirun: bool) -> None:
-    """What a finished run prints, read back from its ``summary.json``: one line per job in a
-    sweep; where the files are, the cost and the validation error for a single run."""
-    import json
-
-    s = json.loads((out / "summary.json").read_text())
+def console(out: Path, job: tuple[int, str] | None = None) -> None:
+    """What a finished run prints, read back from its ``summary.json``: one line for a job of a
+    sweep (``job``: its number and overrides); where the files are, the cost and the validation
+    error for a single run."""
+    s = directory.read_summary(out)
     v = s["validation_rms_mm"]
-    if multirun:
-        log.info("job %s [%s]: best %.6g after %d evaluations, validation %s mm, %.1f s", hc.job.num,
-                 " ".join(hc.overrides.task), s["final_cost"], s["nevals"], _mm(v["calibrated"]), s["wall_s"])  # fmt: skip
+    if job is not None:
+        log.info("job %s [%s]: best %.6g after %d evaluations, validation %s mm, %.1f s", job[0], job[1],
+                 s["final_cost"], s["nevals"], _mm(v["calibrated"]), s["wall_s"])  # fmt: skip
         return
     paper = s["choices"].get("problem") == "paper" and s["choices"].get("algorithm") == "ga"
     print(f"results in {out}")

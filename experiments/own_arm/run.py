@@ -10,9 +10,10 @@ Runs the obvious command for the arm given as a DH file (``irb140.yaml``) and as
 then the two other validations (the tracker moved: ``validation_moved.csv`` with
 ``problem.validation_registration=rigid``; a fourth reflector at a known place:
 ``validation_tool_d.csv`` with ``problem.known_tools={D:[0,0,80]}``), and checks each run's
-calibrated URDF with yourdfpy (an independent parser): its forward kinematics from ``world``
-to ``hand`` and the tool transforms of ``calibrated_robot_frames.yaml`` must predict the
-validation points as the run's ``pose_errors.csv`` says. Writes results/own_arm.md. Make the
+calibrated URDF read back (for the URDF arm: ``irb140.urdf`` with only its joint origins
+changed, plus the base and tool as new fixed joints): its forward kinematics from ``world`` to
+``tool`` and the tool transforms of ``calibrated_robot_frames.yaml`` must predict the validation
+points as the run's ``pose_errors.csv`` says. Writes results/own_arm.md. Make the
 data first (``python experiments/own_arm/make_data.py``). Run:
 
     python experiments/own_arm/run.py [--out DIR]
@@ -29,7 +30,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from zrp_ga import app, config
+from zrp_ga import app, config, kinematics, robot_files
 
 HERE = Path(__file__).parent
 RESULTS = HERE.parent / "results"
@@ -66,24 +67,45 @@ def runs() -> dict[tuple[str, str, str], list[str]]:
 
 def urdf_check(run_dir: Path, summary: dict) -> float:
     """Largest difference (mm) between the validation errors the run reports (``pose_errors.csv``)
-    and those of its calibrated URDF read by yourdfpy (FK world -> hand, then each row's tool
-    transform from the frames file), for validations in the calibration's frame."""
-    import yourdfpy
-
-    urdf = yourdfpy.URDF.load(str(run_dir / "calibrated_robot.urdf"))
+    and those of its calibrated URDF read back (FK world -> tool, back to the hand by the first
+    tool, then each row's tool transform from the frames file), for validations in the
+    calibration's frame."""
+    urdf = robot_files.read_robot(run_dir / "calibrated_robot.urdf", base_link="world", tip_link="tool")
     frames = yaml.safe_load((run_dir / "calibrated_robot_frames.yaml").read_text())
+    first = np.linalg.inv(np.array(frames["tool"]["matrix"]))
     tools = {k: np.array(v["matrix"]) for k, v in frames.get("tools", {"tool": frames["tool"]}).items()}
     val = pd.read_csv(ROOT / summary["problem"]["files"]["validation"])
     reported = pd.read_csv(run_dir / "pose_errors.csv")
     reported = reported[reported["set"] == "validation"].reset_index(drop=True)
-    names = [j for j in urdf.actuated_joint_names]
     worst = 0.0
     for k, row in val.iterrows():
-        urdf.update_cfg(dict(zip(names, np.radians(row[[f"q{i}" for i in range(1, 7)]].to_numpy(dtype=float)))))
-        T = urdf.get_transform("hand", "world") @ tools[row.get("tool", "tool") if len(tools) > 1 else next(iter(tools))]
+        R, p = kinematics.forward(urdf, np.radians(row[[f"q{i}" for i in range(1, 7)]].to_numpy(dtype=float)))
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, p
+        T = T @ first @ tools[row.get("tool", "tool") if len(tools) > 1 else next(iter(tools))]
         err = np.linalg.norm(T[:3, 3] * 1e3 - row[["x", "y", "z"]].to_numpy(dtype=float))
         worst = max(worst, abs(err - reported["calibrated_mm"][k]))
     return worst
+
+
+def urdf_diff(original: Path, calibrated: Path) -> str:
+    """What differs between the user's URDF and the run's calibrated one, element by element
+    (lxml): the changed attributes by joint, then the elements the run added at the end."""
+    from lxml import etree
+
+    a, b = (etree.parse(str(path)).getroot() for path in (original, calibrated))
+    changed: dict[str, list[str]] = {}
+    same = 0
+    for x, y in zip(a.iter(), b.iter()):
+        same += x.attrib == y.attrib
+        if x.tag != y.tag or (x.text or "").strip() != (y.text or "").strip():
+            return f"{calibrated.name}: element <{y.tag}> on line {y.sourceline} differs from the input's"
+        for key in sorted(set(x.attrib) | set(y.attrib)):
+            if x.get(key) != y.get(key):
+                changed.setdefault(x.getparent().get("name"), []).append(f"{x.tag} {key}")
+    added = [f"{e.tag} {e.get('name')}" for e in list(b)[len(a):] if isinstance(e.tag, str)]
+    return ("changed: " + "; ".join(f"{joint}: {', '.join(attrs)}" for joint, attrs in changed.items())
+            + f"; added at the end: {', '.join(added) or 'nothing'}; the other {same} elements (links, limits, comments, ...) as they were")  # fmt: skip
 
 
 def main() -> None:
@@ -103,12 +125,15 @@ def main() -> None:
         app.run(config.load(over + ["progress=false"]), run_dir)
         s = summaries[key] = json.loads((run_dir / "summary.json").read_text())
         check = f"{urdf_check(run_dir, s):.1e}" if key[1] == "same tracker position" else "n/a"
+        if key[0] == "URDF" and "diff" not in summaries:
+            summaries["diff"] = urdf_diff(HERE / "irb140.urdf", run_dir / "calibrated_robot.urdf")
         shown = " ".join(o for o in over if not o.startswith(("problem=measured", "robot=file", "problem.calibration_file")))
         shown = shown.replace(str(ROOT.resolve()) + "/", "")
         for part in ("calibration", "validation"):
             e = s["position_error_mm"][part]
             lines.append(f"| {key[0]} | {key[1]} | {key[2]} | `{shown}` | {part} | {e['nominal']['poses']} | "
                          f"{fmt(e['nominal'])} | {fmt(e['calibrated'])} | {s['wall_s']:.2f} | {check if part == 'validation' else ''} |")  # fmt: skip
+    diff = summaries.pop("diff")
     lines += ["", "Validation RMS, GA / LM:"]
     for arm in ARM:
         for val in VALIDATIONS:
@@ -122,6 +147,7 @@ def main() -> None:
                                                                   for k, xyz in reg["tools_m"].items()) + ".",
               f"Units found in the files: {first['problem']['units']}. Calibrated DH table's mismatch to the calibrated model: "
               f"{first['calibrated_robot']['dh_mismatch']['position_mm']:.2g} mm, {first['calibrated_robot']['dh_mismatch']['orientation_mrad']:.2g} mrad.",
+              f"The URDF run's calibrated_robot.urdf against irb140.urdf (GA run; lxml, element by element): {diff}.",
               "Warnings of the runs: " + ("; ".join(sorted({w for s in summaries.values() for w in s["warnings"]})) or "none") + ".", ""]  # fmt: skip
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "own_arm.md").write_text("\n".join(lines))

@@ -1,47 +1,52 @@
-"""Job configs of a sweep, equal to Hydra's own and composed from a few of them.
+"""Job configs of a sweep, equal to Hydra's own and composed from a few of them, through Hydra's
+public interfaces only.
 
-Hydra composes every job of a sweep from scratch (``ConfigLoaderImpl.load_sweep_config``: the
-defaults list, every file loaded and merged, the overrides applied), 0.2 - 0.3 s a job here,
-twice per job (the sweeper checks each job before the launcher composes it again): more than
-the run of a small job. :class:`ComposingLoader` is Hydra's loader with that one method
-answering from compositions Hydra made:
+Hydra composes every job of a sweep from scratch (the config loader's ``load_sweep_config``:
+the defaults list, every file loaded and merged, the overrides applied), 0.2 - 0.3 s a job
+here, twice per job (the sweeper checks each job before the launcher composes it again): more
+than the run of a small job. :class:`ComposingLoader` is a config loader (Hydra's public
+``ConfigLoader`` interface) that hands every call to Hydra's own loader, but for
+``load_sweep_config``, which answers from compositions Hydra made:
 
 - jobs whose overrides differ only in values (``seed=3``, ``population.mu=50``) share one of
-  Hydra's compositions, onto which each job's values are applied by Hydra's own
-  ``_apply_overrides_to_config`` (values of the same keys and types, so that the result does
-  not depend on the values applied before);
+  Hydra's compositions, onto which each job's values are applied as Hydra applies a value
+  override (``OmegaConf.update(cfg, key, value, merge=True)``; values of the same keys and
+  types, so that the result does not depend on the values applied before);
 - jobs that also choose other options of config groups (``crossover=sbx``) take the composition
   of a first job and, for each group whose option differs, the group's subtree from Hydra's
   composition of that first job with only that option changed. This holds when the option
-  writes into its own package only: the two defaults lists then differ only in entries inside
-  that package, so that everything outside it comes from the same files in the same order.
-  That is checked on the defaults lists Hydra made, and the composition with the option changed
-  must give the first one back when the first subtree is put back;
+  writes into its own package only: the two defaults lists (the loader's public
+  ``compute_defaults_list``) then differ only in entries inside that package, so that
+  everything outside it comes from the same files in the same order, and the composition with
+  the option changed must give the first one back when the first subtree is put back;
 - an option that is not separable so (an option with a ``@package _global_`` header, such as
   ``instance=...``, one choosing other groups' options, packages inside each other) is composed
   by Hydra once per shape and combination of such options, and that composition is then the
   first job of the jobs sharing them (a suite sweep: one per instance, not one per job).
 
 Every job's ``hydra`` node is then completed as Hydra does: ``overrides.task``, the
-``override_dirname`` and the choices. tests/test_sweeps.py compares the configs (YAML, node
-types, flags) with Hydra's own over whole sweeps. This uses Hydra's internal loader, which is
-why ``hydra-core`` is pinned below 1.4; ``hydra.launcher.cached_composition=false`` turns it off.
+``override_dirname`` (a value in hydra-core 1.3, which is computed here as Hydra computes it;
+an interpolation of the task overrides in 1.4, left as it is) and the choices.
+tests/test_sweeps.py compares the configs (YAML, node types, flags) with Hydra's own over whole
+sweeps. A Hydra release that changes what this relies on can make sweeps slower, never wrong:
+``hydra.launcher.cached_composition=false`` (and any sweep with ``hydra.searchpath``) uses
+Hydra's own composition for every job.
 """
 
 from __future__ import annotations
 
-import contextlib
-import copy
 import dataclasses
-import logging
 import pickle
-from collections.abc import Iterator
+import re
 from typing import Any
 
-from hydra._internal.config_loader_impl import ConfigLoaderImpl, get_overrides_dirname
+from hydra.core.config_loader import ConfigLoader
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import Override, OverrideType
+from hydra.errors import ConfigCompositionException
+from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
 
 Shape = tuple  # one entry per override: ("group", key), ("value", key, type name) or ("line", text)
 
@@ -49,23 +54,26 @@ Shape = tuple  # one entry per override: ("group", key), ("value", key, type nam
 @dataclasses.dataclass
 class _Composed:
     """One of Hydra's compositions: the config (pickled: unpickling copies it faster than
-    ``copy.deepcopy``), the override lines it was made with, its defaults list and choices."""
+    ``copy.deepcopy``), the override lines it was made with, its config name, choices and
+    defaults list."""
 
     data: bytes
     lines: list[str]
     options: dict[str, str]
-    defaults: list[tuple]
+    config_name: str
     choices: dict[str, Any]
+    defaults: list[tuple] | None = None  # its defaults list, when asked for (ComposingLoader._defaults)
     config: DictConfig | None = None  # kept for the subtrees of a composition with one option changed
     package: str | None = None  # the changed group's package, for such a composition
 
 
-class ComposingLoader(ConfigLoaderImpl):
-    """Hydra's config loader, with :meth:`load_sweep_config` composing from a few of Hydra's
-    compositions (see the module docstring). ``enabled=False``: Hydra's own, every time."""
+class ComposingLoader(ConfigLoader):
+    """A config loader handing every call to Hydra's ``loader``, with :meth:`load_sweep_config`
+    composing from a few of Hydra's compositions (see the module docstring).
+    ``enabled=False``: Hydra's own, every time."""
 
-    def __init__(self, config_search_path: Any, enabled: bool = True) -> None:
-        super().__init__(config_search_path)
+    def __init__(self, loader: ConfigLoader, enabled: bool = True) -> None:
+        self.loader = loader
         self.enabled = enabled
         self.hydra_compositions = 0  # how many compositions Hydra made (for tests and benchmarks)
         self._parsed: dict[str, Override] = {}
@@ -74,29 +82,52 @@ class ComposingLoader(ConfigLoaderImpl):
         self._bases: dict[Shape, _Composed] = {}  # shape -> the first composition of that shape
         self._variants: dict[tuple, _Composed | None] = {}  # (shape, base lines, group, option) -> None if not separable
         self._fixed_bases: dict[tuple, _Composed] = {}  # (shape, non-separable options) -> the first composition with them
-        self._last_defaults: list[tuple] = []
 
     @classmethod
-    def wrap(cls, loader: ConfigLoaderImpl, enabled: bool = True) -> ComposingLoader:
-        return loader if isinstance(loader, cls) else cls(loader.config_search_path, enabled)
+    def wrap(cls, loader: ConfigLoader, enabled: bool = True) -> ComposingLoader:
+        return loader if isinstance(loader, cls) else cls(loader, enabled)
 
-    # --- Hydra's own, recording the defaults list ----------------------------------------------
-    def _compose_config_from_defaults_list(self, defaults: list, repo: Any) -> DictConfig:
-        self._last_defaults = [(d.config_path, d.package, d.parent, d.is_self) for d in defaults]
-        return super()._compose_config_from_defaults_list(defaults, repo)
+    # --- Hydra's own --------------------------------------------------------------------------------
+    def load_configuration(self, *args: Any, **kwargs: Any) -> DictConfig:
+        return self.loader.load_configuration(*args, **kwargs)
+
+    def get_search_path(self) -> Any:
+        return self.loader.get_search_path()
+
+    def get_sources(self) -> Any:
+        return self.loader.get_sources()
+
+    def list_groups(self, parent_name: str) -> Any:
+        return self.loader.list_groups(parent_name)
+
+    def get_group_options(self, *args: Any, **kwargs: Any) -> Any:
+        return self.loader.get_group_options(*args, **kwargs)
+
+    def compute_defaults_list(self, *args: Any, **kwargs: Any) -> Any:
+        return self.loader.compute_defaults_list(*args, **kwargs)
+
+    def __getattr__(self, name: str) -> Any:  # what later Hydra releases add to the interface
+        return getattr(self.__dict__["loader"], name)
 
     def _hydra(self, master: DictConfig, lines: list[str], options: dict[str, str]) -> tuple[DictConfig, _Composed]:
         hydra_lines = list(master.hydra.overrides.hydra)
-        cfg = super().load_sweep_config(master, lines[len(hydra_lines) :])
+        cfg = self.loader.load_sweep_config(master, lines[len(hydra_lines) :])
         self.hydra_compositions += 1
-        composed = _Composed(pickle.dumps(cfg), list(lines), dict(options), self._last_defaults,
+        composed = _Composed(pickle.dumps(cfg), list(lines), dict(options), str(master.hydra.job.config_name),
                              OmegaConf.to_container(cfg.hydra.runtime.choices))  # fmt: skip
         return cfg, composed
+
+    def _defaults(self, c: _Composed) -> list[tuple]:
+        """The defaults list Hydra composed ``c`` from (computed on first use)."""
+        if c.defaults is None:
+            found = self.loader.compute_defaults_list(c.config_name, list(c.lines), RunMode.RUN)
+            c.defaults = [(d.config_path, d.package, d.parent, d.is_self) for d in found.defaults]
+        return c.defaults
 
     # --- the sweep's jobs -------------------------------------------------------------------------
     def load_sweep_config(self, master_config: DictConfig, sweep_overrides: list[str]) -> DictConfig:
         if not self.enabled or OmegaConf.select(master_config, "hydra.searchpath"):
-            return super().load_sweep_config(master_config, sweep_overrides)
+            return self.loader.load_sweep_config(master_config, sweep_overrides)
         lines = [*master_config.hydra.overrides.hydra, *sweep_overrides]
         overrides = [self._parse(line) for line in lines]
         shape, options, values = self._classify(overrides)
@@ -123,7 +154,8 @@ class ComposingLoader(ConfigLoaderImpl):
 
     def _is_group(self, key: str) -> bool:
         if key not in self._groups:
-            self._groups[key] = self.repository.group_exists(key)
+            parent, _, name = key.rpartition("/")
+            self._groups[key] = "." not in key and name in self.loader.list_groups(parent)
         return self._groups[key]
 
     def _classify(self, overrides: list[Override]) -> tuple[Shape, dict[str, str], list[Override]]:
@@ -176,7 +208,7 @@ class ComposingLoader(ConfigLoaderImpl):
         if key not in self._variants:
             lines = [f"{group}={option}" if (s[0] == "group" and s[1] == group) else line for s, line in zip(shape, base.lines)]
             cfg, variant = self._hydra(master, lines, {**base.options, group: option})
-            variant.package = _changed_package(base, variant, group)
+            variant.package = _changed_package(base, variant, group, self._defaults)
             if variant.package is not None and not _gives_back(cfg, base, variant.package, group):
                 variant.package = None
             variant.config = cfg
@@ -191,14 +223,25 @@ class ComposingLoader(ConfigLoaderImpl):
     def _complete(cfg: DictConfig, overrides: list[Override], values: list[Override]) -> None:
         """What Hydra sets from a job's overrides: the values, ``overrides.task`` and the
         ``override_dirname`` (the choices are set by the caller)."""
-        ConfigLoaderImpl._apply_overrides_to_config(values, cfg)
+        for o in values:  # as Hydra applies a value override
+            try:
+                OmegaConf.update(cfg, o.key_or_group, o.value(), merge=True)
+            except OmegaConfBaseException as ex:
+                raise ConfigCompositionException(f"Error merging override {o.input_line}") from ex
         task = [o for o in overrides if not o.is_hydra_override()]
         for k, o in enumerate(task):
             cfg.hydra.overrides.task[k] = o.input_line
-        names = cfg.hydra.job.config.override_dirname
-        cfg.hydra.job.override_dirname = get_overrides_dirname(
-            overrides=task, kv_sep=names.kv_sep, item_sep=names.item_sep, exclude_keys=names.exclude_keys
-        )
+        if not OmegaConf.is_interpolation(cfg.hydra.job, "override_dirname"):  # hydra-core 1.3: a value
+            names = cfg.hydra.job.config.override_dirname
+            cfg.hydra.job.override_dirname = override_dirname(task, names.exclude_keys, names.item_sep, names.kv_sep)
+
+
+def override_dirname(overrides: list[Override], exclude_keys: Any, item_sep: str, kv_sep: str) -> str:
+    """``hydra.job.override_dirname`` as Hydra 1.3 computes it: the task overrides but the
+    excluded keys, sorted, joined by ``item_sep``, with ``kv_sep`` for ``=`` (Hydra's
+    documentation, "Customizing working directory pattern")."""
+    lines = sorted(o.input_line for o in overrides if o.key_or_group not in exclude_keys)
+    return re.sub("[=]", kv_sep, item_sep.join(lines))
 
 
 def _inside(package: str, root: str) -> bool:
@@ -209,20 +252,20 @@ def _disjoint(packages: list[str]) -> bool:
     return not any(a is not b and _inside(a, b) for a in packages for b in packages)
 
 
-def _changed_package(base: _Composed, variant: _Composed, group: str) -> str | None:
-    """The package of ``group``'s option when the two defaults lists differ only inside it and
-    the choices only in ``group``; else None."""
-    old = [d for d in base.defaults if d[0] == f"{group}/{base.options[group]}"]
-    new = [d for d in variant.defaults if d[0] == f"{group}/{variant.options[group]}"]
-    if len(old) != 1 or len(new) != 1 or old[0][1] != new[0][1] or not old[0][1]:
-        return None
-    package = old[0][1]
-    rest = [[d for d in c.defaults if not (d[1] is not None and _inside(d[1], package))] for c in (base, variant)]
-    if rest[0] != rest[1] or list(base.choices) != list(variant.choices):
+def _changed_package(base: _Composed, variant: _Composed, group: str, defaults: Any) -> str | None:
+    """The package of ``group``'s option when the two defaults lists (``defaults(composed)``)
+    differ only inside it and the choices only in ``group``; else None."""
+    if list(base.choices) != list(variant.choices):
         return None
     if any(base.choices[k] != variant.choices[k] for k in base.choices if k != group):
         return None
-    return package
+    old = [d for d in defaults(base) if d[0] == f"{group}/{base.options[group]}"]
+    new = [d for d in defaults(variant) if d[0] == f"{group}/{variant.options[group]}"]
+    if len(old) != 1 or len(new) != 1 or old[0][1] != new[0][1] or not old[0][1]:
+        return None
+    package = old[0][1]
+    rest = [[d for d in defaults(c) if not (d[1] is not None and _inside(d[1], package))] for c in (base, variant)]
+    return package if rest[0] == rest[1] else None
 
 
 def _gives_back(cfg: DictConfig, base: _Composed, package: str, group: str) -> bool:
@@ -233,112 +276,14 @@ def _gives_back(cfg: DictConfig, base: _Composed, package: str, group: str) -> b
     other.hydra.runtime.choices[group] = base.options[group]
     for k, line in enumerate(first.hydra.overrides.task):
         other.hydra.overrides.task[k] = line
-    other.hydra.job.override_dirname = first.hydra.job.override_dirname
+    if not OmegaConf.is_interpolation(first.hydra.job, "override_dirname"):
+        other.hydra.job.override_dirname = first.hydra.job.override_dirname
     return OmegaConf.to_yaml(other) == OmegaConf.to_yaml(first)
 
 
 def _put(cfg: DictConfig, package: str, node: Any) -> None:
     """Replace the subtree at the dotted ``package`` of ``cfg`` by a copy of ``node``, a node
-    of the same schema field in another composition. The node object is swapped in whole:
-    assigning it would rebuild it key by key (OmegaConf's ``_set_value``), at ten times the cost,
-    to the same nodes (the tests compare node types and flags)."""
+    of the same schema field in another composition."""
     parent, _, leaf = package.rpartition(".")
     target = OmegaConf.select(cfg, parent) if parent else cfg
-    new = copy.deepcopy(node)
-    new._set_parent(target)
-    target.__dict__["_content"][leaf] = new
-
-
-@contextlib.contextmanager
-def compose_once() -> Iterator[None]:
-    """While active, a Hydra app composes its config once instead of twice.
-
-    ``hydra.main`` composes the config to read ``hydra.mode`` (``Hydra.get_mode``, in multirun
-    mode, where sweep overrides are not checked and missing options are skipped), then composes
-    it again to run (0.2 - 0.3 s each here). The first composition is kept and given to the
-    second when the second could not differ: no sweep overrides (for a single run), no missing
-    option, and the same overrides but for ``hydra.mode=RUN`` or ``=MULTIRUN``, which Hydra
-    appends when no config set the mode; that override is then applied as Hydra applies it
-    (``_apply_overrides_to_config``, and the line appended to ``hydra.overrides.hydra``).
-    tests/test_sweeps.py compares the result with Hydra's own composition."""
-    from hydra._internal import hydra as hydra_module
-    from hydra.types import RunMode
-
-    Hydra = hydra_module.Hydra
-    get_mode, compose = Hydra.get_mode, Hydra.compose_config
-    kept: dict[tuple, DictConfig] = {}
-
-    def first(self: Any, config_name: str | None, overrides: list[str]) -> Any:
-        try:
-            cfg = compose(self, config_name=config_name, overrides=overrides, run_mode=RunMode.MULTIRUN,
-                          with_log_configuration=False, validate_sweep_overrides=False)  # fmt: skip
-        except Exception:  # as Hydra's get_mode: the next composition raises it
-            return None
-        kept[(config_name, tuple(overrides))] = cfg
-        return cfg.hydra.mode
-
-    def again(self: Any, config_name: str | None, overrides: list[str], run_mode: Any,
-              with_log_configuration: bool = False, from_shell: bool = True, validate_sweep_overrides: bool = True) -> DictConfig:  # fmt: skip
-        cfg = _reuse(kept, config_name, overrides, run_mode)
-        if cfg is None:
-            return compose(self, config_name, overrides, run_mode, with_log_configuration, from_shell, validate_sweep_overrides)
-        if with_log_configuration:  # what Hydra's compose_config does then
-            from hydra.core.utils import configure_log
-
-            configure_log(cfg.hydra.hydra_logging, cfg.hydra.verbose)
-            hydra_module.log = logging.getLogger(hydra_module.__name__)
-            self._print_debug_info(config_name, overrides, run_mode)
-        return cfg
-
-    Hydra.get_mode, Hydra.compose_config = first, again
-    try:
-        yield
-    finally:
-        Hydra.get_mode, Hydra.compose_config = get_mode, compose
-
-
-def _reuse(kept: dict, config_name: str | None, overrides: list[str], run_mode: Any) -> DictConfig | None:
-    """The kept composition for ``overrides`` (see :func:`compose_once`), or None."""
-    from hydra.types import RunMode
-
-    mode_lines = {f"hydra.mode={m.name}" for m in RunMode}
-    extra = overrides[-1:] if overrides and overrides[-1] in mode_lines else []
-    cfg = kept.pop((config_name, tuple(overrides[: len(overrides) - len(extra)])), None)
-    parsed = OverridesParser.create().parse_overrides(list(overrides))
-    choices = cfg.hydra.runtime.choices if cfg is not None else {}
-    if cfg is None or any(OmegaConf.is_missing(choices, k) for k in choices):
-        return None
-    if any(o.is_sweep_override() and (run_mode == RunMode.RUN or o.is_hydra_override()) for o in parsed):
-        return None  # Hydra's composition refuses these
-    if extra:
-        ConfigLoaderImpl._apply_overrides_to_config(parsed[-1:], cfg)
-        cfg.hydra.overrides.hydra.append(extra[0])
-    return cfg
-
-
-@contextlib.contextmanager
-def group_options_once() -> Iterator[None]:
-    """While active, Hydra's config loader lists the options of config groups from one copy of
-    its config repository per (config name, overrides), instead of a deep copy of the whole
-    repository (zrp_ga's structured schemas included) for every group it is asked about:
-    ``zrp-ga --help`` asks about 115 groups, which took 3 s here. The listing only reads the
-    copy (``CachingConfigRepository.get_group_options``), so sharing it changes no answer;
-    tests/test_app.py compares the help text with Hydra's own."""
-    from hydra._internal.config_loader_impl import ConfigLoaderImpl
-    from hydra.core.object_type import ObjectType
-
-    original = ConfigLoaderImpl.get_group_options
-
-    def get_group_options(self: Any, group_name: str, results_filter: Any = ObjectType.CONFIG,
-                          config_name: str | None = None, overrides: list[str] | None = None) -> list[str]:  # fmt: skip
-        repos = self.__dict__.setdefault("_zrp_ga_listing_repos", {})
-        key = (config_name, tuple(overrides or ()))
-        if key not in repos:
-            repos[key] = self._parse_overrides_and_create_caching_repo(config_name, list(overrides or ()))[1]
-        return repos[key].get_group_options(group_name, results_filter)
-
-    ConfigLoaderImpl.get_group_options = get_group_options
-    try:
-        yield
-    finally:
-        ConfigLoaderImpl.get_group_options = original
+    target[leaf] = node

@@ -22,7 +22,9 @@ from __future__ import annotations
 
 import atexit
 import collections
+import contextlib
 import dataclasses
+import io
 import logging
 import multiprocessing
 import os
@@ -35,7 +37,6 @@ from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any
 
-from hydra.core.hydra_config import HydraConfig
 from hydra.core.singleton import Singleton
 from hydra.core.utils import JobReturn, JobStatus, configure_log, filter_overrides, run_job, setup_globals
 from hydra.types import HydraContext, TaskFunction
@@ -72,19 +73,13 @@ def _serve(conn: Any, start: _Start) -> None:
     _die_with(start.parent)
     if start.singleton_state is not None:
         # Hydra's singletons, as Hydra's joblib launcher passes them, but for OmegaConf's
-        # resolvers (closures: not picklable without cloudpickle): Hydra's are registered again
-        # by setup_globals, the app's when its module is imported for the task function.
-        Singleton._instances = start.singleton_state
-        from hydra.core.plugins import Plugins
-
-        Plugins.instance()
+        # resolvers (closures: not picklable without cloudpickle), which stay this process's own:
+        # Hydra's are registered again by setup_globals, the app's when its module is imported
+        # for the task function.
+        state = Singleton.get_state()
+        state["instances"] = start.singleton_state
+        Singleton.set_state(state)
     setup_globals()
-    try:
-        from zrp_ga import hydra_callbacks
-
-        hydra_callbacks.table_each_job = False  # the driver writes the table
-    except ImportError:
-        pass
     task_function = _task_function(start.task_function)
     try:
         if start.warm_up:
@@ -128,8 +123,20 @@ def _dump_return(idx: int, ret: JobReturn) -> bytes:
     try:
         return pickle.dumps((idx, ret))
     except Exception:
-        ret.return_value = RuntimeError(f"{type(ret._return_value).__name__}: {ret._return_value}")
+        error = _error(ret)
+        ret.return_value = RuntimeError(f"{type(error).__name__}: {error}")
         return pickle.dumps((idx, ret))
+
+
+def _error(ret: JobReturn) -> BaseException | None:
+    """The exception of a failed job (``JobReturn.return_value`` raises it, and says so on
+    stderr, which is silenced here: Hydra's sweeper says it again)."""
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):
+            ret.return_value  # noqa: B018
+    except BaseException as exc:
+        return exc
+    return None
 
 
 def _die_with(parent: int) -> None:
@@ -310,32 +317,29 @@ class _Dispatcher:
         code = w.process.exitcode
         for idx in [i for batch in w.batches for i in batch]:
             error = RuntimeError(f"the worker process running this job died (exit code {code})")
-            self.returns[idx] = JobReturn(overrides=self.overrides[idx], status=JobStatus.FAILED, _return_value=error)
+            self.returns[idx] = JobReturn(overrides=self.overrides[idx], status=JobStatus.FAILED)
+            self.returns[idx].return_value = error
             _record_failure(self.launcher, idx, self.overrides[idx], error)
         self.feed(self.pool.replace(w))
 
     def write_table(self) -> None:
         self.table_at = time.monotonic()
         try:
-            from zrp_ga import hydra_callbacks
+            from zrp_ga.run import directory
         except ImportError:
             return
-        if (self.sweep / hydra_callbacks.MANIFEST).exists():
-            hydra_callbacks.write_table(self.sweep)
+        directory.write_table(self.sweep)
 
 
 def _record_failure(launcher: Any, idx: int, overrides: list[str], error: Exception) -> None:
     """The manifest line of a job whose worker died before it could write one."""
     try:
-        from zrp_ga import hydra_callbacks
+        from zrp_ga.run import directory
     except ImportError:
         return
     config = launcher.hydra_context.config_loader.load_sweep_config(launcher.config, overrides)
     with open_dict(config):
         config.hydra.job.id, config.hydra.job.num = idx, idx
-    saved = HydraConfig.instance().cfg
-    HydraConfig.instance().set_config(config)
-    try:
-        hydra_callbacks.record("failed", f"{type(error).__name__}: {error}")
-    finally:
-        HydraConfig.instance().cfg = saved
+    hc = config.hydra
+    sweep = directory.Sweep(Path(hc.sweep.dir), idx, tuple(hc.overrides.task), str(hc.sweep.subdir))
+    directory.record(sweep, "failed", f"{type(error).__name__}: {error}")

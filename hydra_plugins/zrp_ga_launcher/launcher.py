@@ -15,33 +15,19 @@ a leading underscore).
 
 # No "from __future__ import annotations": Hydra's plugin scan executes this module before it is
 # in sys.modules, where dataclasses look up string annotations.
-import dataclasses
 from collections.abc import Sequence
 from typing import Any, Optional
 
-from hydra.core.config_store import ConfigStore
 from hydra.core.utils import JobReturn
 from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig
 
-
-@dataclasses.dataclass
-class ZrpGaLauncherConf:
-    _target_: str = "hydra_plugins.zrp_ga_launcher.launcher.ZrpGaLauncher"
-    n_jobs: int = -1  # worker processes; -1: one per core this process may use
-    batch_size: int = 1  # jobs handed to a worker at a time (it holds two batches, so it never waits)
-    start_method: Optional[str] = None  # multiprocessing's: null is fork on Linux, spawn elsewhere
-    cached_composition: bool = True  # job configs from a few of Hydra's compositions (equal to Hydra's)
-    warm_up: Optional[str] = "zrp_ga.app.warm_up"  # called with the sweep's config before the first job
-    table_every_s: float = 1.0  # manifest.csv rewritten at most this often (and at the end)
-
-
-ConfigStore.instance().store(group="hydra/launcher", name="zrp_ga", node=ZrpGaLauncherConf, provider="zrp_ga")
+from zrp_ga.config import ZrpGaLauncherConf  # its settings, stored in Hydra's ConfigStore by zrp_ga.config.register
 
 
 class ZrpGaLauncher(Launcher):
-    """See the module docstring; settings in :class:`ZrpGaLauncherConf`."""
+    """See the module docstring; settings in :class:`zrp_ga.config.ZrpGaLauncherConf`."""
 
     def __init__(self, **settings: Any) -> None:
         self.settings = ZrpGaLauncherConf(**{k: v for k, v in settings.items() if k != "_target_"})

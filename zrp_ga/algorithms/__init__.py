@@ -21,11 +21,12 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 from deap import base
 from numpy.typing import NDArray
+
+from zrp_ga.problems.protocol import Problem
 
 Array = NDArray[np.float64]
 
@@ -92,7 +93,7 @@ class Algorithm:
         self._t0 = time.perf_counter()
 
     # --- what a subclass provides --------------------------------------------------------------
-    def setup(self, problem: Any, rng: np.random.Generator) -> None:
+    def setup(self, problem: Problem, rng: np.random.Generator) -> None:
         """Register the problem's cost as ``toolbox.evaluate`` and bind the operators."""
         self.problem, self.rng = problem, rng
         self.toolbox.register("evaluate", problem.costs)
@@ -142,7 +143,7 @@ class Algorithm:
         rows.append(row)
 
     def run(
-        self, problem: Any, rng: np.random.Generator, callbacks: Sequence[Callback] = (), state: dict | None = None
+        self, problem: Problem, rng: np.random.Generator, callbacks: Sequence[Callback] = (), state: dict | None = None
     ) -> Result:
         """Set up, start (or continue from ``state``), step until a stop criterion, return the
         result; the callbacks see every generation, and an interrupt (Ctrl-C) before re-raising."""

@@ -19,6 +19,7 @@ import numpy as np
 
 from zrp_ga.algorithms import Algorithm, Result
 from zrp_ga.config import ConfigError
+from zrp_ga.problems.protocol import Sampling
 
 
 class Exchange(Algorithm):
@@ -30,7 +31,7 @@ class Exchange(Algorithm):
 
     def initialize(self) -> None:
         p = self.problem
-        if not hasattr(p, "sample"):
+        if not isinstance(p, Sampling):
             raise ConfigError("algorithm: the exchange algorithm chooses subsets; use it with problem=pose_selection")
         self.S = p.sample(self.rng, 1)[0]
         self.costs = self.toolbox.evaluate(self.S[None])

@@ -18,6 +18,7 @@ from zrp_ga import operators
 from zrp_ga.algorithms import Algorithm, Array, Result
 from zrp_ga.config import ConfigError, PopulationConf, RefineConf, Repair, SelectionConf, Strategy, VariationConf, section
 from zrp_ga.operators.repair import repair
+from zrp_ga.problems.protocol import GeneBlocks, LeastSquares, Problem, Repairing, Sampling
 
 UNARY = (("mutate", "mutation"), ("invert", "inversion"), ("rotate", "rotation"))
 
@@ -81,14 +82,14 @@ class GA(Algorithm):
             if node is not None:
                 operators.target(node, key)  # the function exists and takes these parameters
 
-    def setup(self, problem, rng: np.random.Generator) -> None:
-        """Bind the operators to the problem's ranges and blocks and register them. A problem
-        whose genomes are not real-valued parameters may bring its own ``gene_blocks`` and
-        ``repair(X, rng)`` (and ``sample(rng, n)``, see :meth:`initialize`), e.g. the subsets
-        of :mod:`zrp_ga.problems.selection`; then its repair replaces ``algorithm.repair``."""
+    def setup(self, problem: Problem, rng: np.random.Generator) -> None:
+        """Bind the operators to the problem's ranges and blocks and register them. The optional
+        parts a problem declares (:mod:`zrp_ga.problems.protocol`) count: its gene blocks (else
+        one block), its repair, which replaces ``algorithm.repair`` (and its sampling, see
+        :meth:`initialize`), e.g. the subsets of :mod:`zrp_ga.problems.selection`."""
         super().setup(problem, rng)
         tb = self.toolbox
-        blocks = getattr(problem, "gene_blocks", None) or [(s.start, s.stop) for s in problem.layout.blocks.values()]
+        blocks = problem.gene_blocks if isinstance(problem, GeneBlocks) else [(0, problem.lower.size)]
         context = dict(low=problem.lower, up=problem.upper, blocks=blocks, problem=problem)
         tb.register("select", operators.build(self.selection.op, "selection.op", "selection", rng))
         families = [("mate", "crossover")] + list(UNARY)
@@ -99,7 +100,7 @@ class GA(Algorithm):
                 tb.register(alias, op)
         if self.refine_conf.share > 0 and self.refine_conf.op is not None:
             tb.register("refine", operators.build(self.refine_conf.op, "refine.op", "refine", rng, **context))
-        if hasattr(problem, "repair"):
+        if isinstance(problem, Repairing):
             tb.register("repair", problem.repair, rng=rng)
         else:
             tb.register("repair", repair, low=problem.lower, up=problem.upper, method=self.repair)
@@ -108,10 +109,10 @@ class GA(Algorithm):
     def initialize(self) -> None:
         """mu genomes uniform in the gene ranges (or the problem's ``sample(rng, mu)``), evaluated: generation 0."""
         p, mu = self.problem, self.pop_conf.mu
-        if hasattr(self.toolbox, "refine") and not hasattr(p, "jacobian"):
+        if hasattr(self.toolbox, "refine") and not isinstance(p, LeastSquares):
             raise ConfigError("refine: the pseudo-inverse step needs a calibration problem (its Jacobian); set refine=none "
                               "(experiment=pose_selection does)")
-        self.pop = p.sample(self.rng, mu) if hasattr(p, "sample") else self.rng.uniform(p.lower, p.upper, size=(mu, p.lower.size))
+        self.pop = p.sample(self.rng, mu) if isinstance(p, Sampling) else self.rng.uniform(p.lower, p.upper, size=(mu, p.lower.size))
         self.costs = self.toolbox.evaluate(self.pop)
         self.initial = (self.pop.copy(), self.costs.copy())
         self.nevals, self.n_nonfinite = self.pop_conf.mu, int(np.sum(~np.isfinite(self.costs)))

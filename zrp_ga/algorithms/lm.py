@@ -19,6 +19,7 @@ import numpy as np
 
 from zrp_ga.algorithms import Algorithm, Callback, Result
 from zrp_ga.config import ConfigError
+from zrp_ga.problems.protocol import LeastSquares
 
 X_SCALE = 1e-3  # m or rad per gene: 1 mm and 1 mrad weigh alike
 
@@ -30,12 +31,15 @@ class LM(Algorithm):
             raise ConfigError(f"algorithm.max_evals: must be at least 1 (or null), got {max_evals}")
         self.max_evals = max_evals
 
-    def run(self, problem, rng: np.random.Generator, callbacks: tuple[Callback, ...] = (), state: dict | None = None) -> Result:
+    def run(self, problem: LeastSquares, rng: np.random.Generator, callbacks: tuple[Callback, ...] = (), state: dict | None = None) -> Result:
         """One call of ``least_squares``; the callbacks see every residual evaluation."""
         from scipy.optimize import least_squares
 
         if state is not None:
             raise ConfigError("resume: only GA runs keep checkpoints")
+        if not isinstance(problem, LeastSquares):
+            raise ConfigError("algorithm: Levenberg-Marquardt needs a residual and its Jacobian (a calibration problem); "
+                              "this problem has none")  # fmt: skip
         self.setup(problem, rng)
         rows: list[dict] = []
         for cb in callbacks:

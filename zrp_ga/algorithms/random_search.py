@@ -9,6 +9,7 @@ import numpy as np
 
 from zrp_ga.algorithms import Algorithm, Result
 from zrp_ga.config import ConfigError
+from zrp_ga.problems.protocol import Sampling
 
 
 class RandomSearch(Algorithm):
@@ -31,7 +32,7 @@ class RandomSearch(Algorithm):
 
     def _draw(self) -> None:
         p, n = self.problem, min(self.batch, self.samples - self.nevals)
-        self.X = p.sample(self.rng, n) if hasattr(p, "sample") else self.rng.uniform(p.lower, p.upper, size=(n, p.lower.size))
+        self.X = p.sample(self.rng, n) if isinstance(p, Sampling) else self.rng.uniform(p.lower, p.upper, size=(n, p.lower.size))
         self.costs = self.toolbox.evaluate(self.X)
         self.nevals += n
         self.n_nonfinite = int(n - np.isfinite(self.costs).sum())

@@ -9,7 +9,11 @@ that the GA varies a whole generation in a few numpy calls; random numbers come 
 ``numpy.random.Generator`` passed in, drawn for the whole batch at once, and the segment moves
 are small compiled loops. Any other function named in a config, DEAP's own operators
 (``deap.tools.cxBlend``) included, is applied one individual at a time through
-:mod:`zrp_ga.operators.deap_adapter` (slower; for comparison).
+:mod:`zrp_ga.operators.deap_adapter` (slower; for comparison). Whichever it is, :func:`target`
+checks its parameters before any work: known to the function, in range, none missing.
+
+In a DEAP toolbox of your own, on DEAP's list individuals, register them through
+:func:`zrp_ga.deap_tools.for_deap`, which converts the lists and binds the generator.
 """
 
 from __future__ import annotations
@@ -20,79 +24,19 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-from zrp_ga._numba import jit
-
-Array = NDArray[np.float64]
-
-
-def rows(a: Array) -> Array:
-    """A 2-D view (N, K) of a genome or a batch; writing into it writes into ``a``."""
-    if a.ndim == 1:
-        return a[None]
-    if a.ndim != 2:
-        raise ValueError(f"genome: expected shape (K,) or (N, K), got {a.shape}")
-    return a
-
-
-def segments(rng: np.random.Generator, lo: NDArray | int, hi: NDArray | int, N: int) -> tuple[NDArray, NDArray]:
-    """N random segments [i, j], i < j, uniform over the pairs of loci in [lo, hi) (per row or
-    shared). Drawn from one ``rng.random`` call: ``rng.integers`` with array bounds costs 10x."""
-    span = np.asarray(hi) - np.asarray(lo)
-    r = rng.random((2, N))
-    x = (r[0] * span).astype(np.intp)
-    y = (r[1] * (span - 1)).astype(np.intp)
-    y += y >= x
-    return lo + np.minimum(x, y), lo + np.maximum(x, y)
-
-
-def block_bounds(rng: np.random.Generator, N: int, blocks: list[tuple[int, int]]) -> tuple[NDArray, NDArray]:
-    """Per row, the [lo, hi) of a block chosen with probability proportional to its size
-    (blocks of fewer than two genes never chosen)."""
-    usable = np.array([(a, b) for a, b in blocks if b - a >= 2])
-    sizes = usable[:, 1] - usable[:, 0]
-    pick = np.searchsorted(np.cumsum(sizes), rng.random(N) * sizes.sum(), side="right")
-    return usable[pick, 0], usable[pick, 1]
-
-
-@jit
-def reverse_segments(A, i, j):  # pragma: no cover - compiled
-    """Reverse ``A[r, i[r] .. j[r]]`` (inclusive) of every row in place."""
-    for r in range(A.shape[0]):
-        a, b = i[r], j[r]
-        while a < b:
-            A[r, a], A[r, b] = A[r, b], A[r, a]
-            a += 1
-            b -= 1
-
-
-@jit
-def rotate_segments(A, i, j, shift):  # pragma: no cover - compiled
-    """Shift ``A[r, i[r] .. j[r]]`` (inclusive) cyclically right by ``shift[r]`` places, in place."""
-    buf = np.empty(A.shape[1])
-    for r in range(A.shape[0]):
-        length = j[r] - i[r] + 1
-        for k in range(length):
-            buf[(k + shift[r]) % length] = A[r, i[r] + k]
-        for k in range(length):
-            A[r, i[r] + k] = buf[k]
-
-
-@jit
-def swap_segments(A, B, lo, hi):  # pragma: no cover - compiled
-    """Swap ``A[r, lo[r]:hi[r]]`` with ``B[r, lo[r]:hi[r]]`` for every row, in place."""
-    for r in range(A.shape[0]):
-        for k in range(lo[r], hi[r]):
-            A[r, k], B[r, k] = B[r, k], A[r, k]
-
-
-def batched(fn: Callable) -> Callable:
-    """Mark ``fn`` as taking batches of genomes (N, K) and a ``rng``: :func:`build` then calls it
-    on a whole generation rather than one individual at a time."""
-    fn.batched = True
-    return fn
-
+from zrp_ga.config import ConfigError
+from zrp_ga.operators import deap_adapter
+from zrp_ga.operators.base import (  # noqa: F401 (the operators' shared helpers, importable from here as before)
+    Array,
+    batched,
+    block_bounds,
+    reverse_segments,
+    rotate_segments,
+    rows,
+    segments,
+    swap_segments,
+)
 
 # What the usual operator parameters must be, whichever operator takes them (DEAP's included).
 RULES: dict[str, tuple[Callable[[Any], bool], str]] = {
@@ -116,9 +60,36 @@ def _check(key: str, params: dict) -> None:
             raise ValueError(f"{key}.{name}: must be {what}, got {value}")
 
 
-def target(node: Mapping[str, Any], key: str) -> tuple[Callable, dict]:
-    """The function an operator node names by ``_target_`` and its parameters; ValueError naming
-    ``key`` when the function cannot be found or a parameter is not one it takes.
+# The genomes (or costs) an operator of each family takes first, before its parameters; one
+# genome for the others (mutation, inversion, rotation, refine).
+GENOME_ARGS = {"crossover": 2, "selection": 2}
+# What :func:`build` binds from the problem when the function takes it.
+CONTEXT = ("low", "up", "blocks", "problem")
+
+
+def parameters(fn: Callable, family: str) -> dict[str, inspect.Parameter]:
+    """The parameters of operator ``fn`` a config may set: its own after the genomes it varies
+    (two for crossover and selection, one for the others) and ``rng``."""
+    params = list(inspect.signature(fn).parameters.values())[GENOME_ARGS.get(family, 1) :]
+    kinds = (inspect.Parameter.VAR_POSITIONAL, inspect.Parameter.VAR_KEYWORD)
+    return {p.name: p for p in params if p.name != "rng" and p.kind not in kinds}
+
+
+def _require(fn_name: str, takes: dict[str, inspect.Parameter], given: Mapping[str, Any], key: str) -> None:
+    """ConfigError naming ``key`` and the first parameter without a default that is not ``given``."""
+    missing = [k for k, p in takes.items() if p.default is inspect.Parameter.empty and k not in given]
+    if missing:
+        raise ConfigError(f"{key}.{missing[0]}: {fn_name} needs this parameter (missing: {', '.join(missing)}); "
+                          f"add +{key}.{missing[0]}=VALUE")  # fmt: skip
+
+
+def target(node: Mapping[str, Any], key: str, family: str | None = None) -> tuple[Callable, dict]:
+    """The function an operator node names by ``_target_`` and its parameters, checked before
+    any work: ValueError (ConfigError for a missing parameter) naming ``key`` when the function
+    cannot be found, a parameter is not one it takes, a value is out of range or a parameter
+    without a default is not given (the problem's ``low``, ``up``, ``blocks`` and ``problem``
+    count as given: :func:`build` binds them). ``family``: the operator family (default: the
+    first part of ``key``, e.g. ``mutation`` of ``mutation.op``).
 
     The nodes are Hydra ``_target_`` / ``_partial_`` configs, with the same meaning as
     ``hydra.utils.instantiate(node)``; they are bound here into a plain ``functools.partial``
@@ -136,12 +107,12 @@ def target(node: Mapping[str, Any], key: str) -> tuple[Callable, dict]:
         fn = get_method(name)
     except Exception as exc:  # Hydra wraps the import error; keep its first line
         raise ValueError(f"{key}._target_: cannot import {name!r} ({str(exc).splitlines()[0]})") from None
-    takes = [k for k in inspect.signature(fn).parameters if k not in ("ind", "ind1", "ind2", "individual",
-                                                                      "individuals", "costs", "k", "rng")]  # fmt: skip
+    takes = parameters(fn, family or key.split(".")[0])
     unknown = sorted(set(params) - set(takes))
     if unknown:
         raise ValueError(f"{key}: unknown parameter {unknown[0]!r} for {name} (takes: {', '.join(takes) or 'none'})")
     _check(key, params)
+    _require(name, takes, {**params, **dict.fromkeys(CONTEXT)}, key)
     return fn, params
 
 
@@ -154,11 +125,10 @@ def build(
     (``crossover``, ``mutation``, ``selection``)."""
     if node is None:
         return None
-    fn, params = target(node, key)
-    takes = inspect.signature(fn).parameters
+    fn, params = target(node, key, family)
+    takes = parameters(fn, family)
     params.update({k: v for k, v in context.items() if k in takes and k not in params})
+    _require(node["_target_"], takes, params, key)  # a context value this family does not get
     if getattr(fn, "batched", False):
         return functools.partial(fn, rng=rng, **params)
-    from zrp_ga.operators import deap_adapter
-
     return deap_adapter.wrap(fn, family, **params)

@@ -19,7 +19,7 @@ from collections.abc import Callable
 import numpy as np
 from deap import base
 
-from zrp_ga.operators import Array, rows
+from zrp_ga.operators.base import Array, rows
 
 
 class _Fitness(base.Fitness):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.operators import Array, batched, block_bounds, reverse_segments, rows, segments
+from zrp_ga.operators.base import Array, batched, block_bounds, reverse_segments, rows, segments
 
 
 def _permute(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]] | None) -> tuple[Array]:

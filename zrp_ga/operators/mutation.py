@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.operators import Array, batched, rows
+from zrp_ga.operators.base import Array, batched, rows
 
 
 @batched

@@ -16,14 +16,15 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from zrp_ga.operators import batched
-from zrp_ga.problem import CalibrationProblem
+from zrp_ga.operators.base import batched
+from zrp_ga.problems.protocol import LeastSquares
 
 Array = NDArray[np.float64]
 
 
-def step(problem: CalibrationProblem, x: Array, rcond: float) -> Array:
-    """The step for one genome ``x`` (K,)."""
+def step(problem: LeastSquares, x: Array, rcond: float) -> Array:
+    """The step for one genome ``x`` (K,) of a problem with a residual and its Jacobian (and
+    gene ranges ``lower``/``upper``): :class:`zrp_ga.problems.protocol.LeastSquares`."""
     J, r = problem.jacobian(x), problem.residual(x)
     new = x + np.linalg.lstsq(J, r, rcond=rcond)[0]
     if np.all((new >= problem.lower) & (new <= problem.upper)):
@@ -39,7 +40,7 @@ def step(problem: CalibrationProblem, x: Array, rcond: float) -> Array:
 
 
 @batched
-def pinv(X: Array, rng: np.random.Generator, problem: CalibrationProblem, rcond: float = 1e-9) -> tuple[Array]:
+def pinv(X: Array, rng: np.random.Generator, problem: LeastSquares, rcond: float = 1e-9) -> tuple[Array]:
     """Every row of ``X`` (N, K) takes the pseudo-inverse step, in place (``rng`` unused: the
     step is deterministic)."""
     with np.errstate(all="ignore"):

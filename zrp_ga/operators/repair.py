@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from zrp_ga.config import Repair
-from zrp_ga.operators import Array, rows
+from zrp_ga.operators.base import Array, rows
 
 
 def repair(A: Array, low: Array, up: Array, method: Repair = Repair.clip) -> Array:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from zrp_ga.operators import batched
+from zrp_ga.operators.base import batched
 
 
 def _finite(costs: NDArray) -> NDArray:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from zrp_ga.operators import Array, batched, rows
+from zrp_ga.operators.base import Array, batched, rows
 
 
 def duplicates(A: Array, keep: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:

@@ -6,7 +6,7 @@ simulated true arm, or the rows of a measurement file. A genome is k distinct ca
 indices; its cost is an observability index of the scaled error Jacobian of the identifiable
 parameters (:mod:`zrp_ga.observability`, docs/model.md section 6), computed for a whole
 population from precomputed per-pose Jacobian blocks. The GA finds subsets through the
-problem's ``sample`` and ``repair`` hooks and the subset operators
+problem's sampling and repair (its declared parts, :mod:`zrp_ga.problems.protocol`) and the subset operators
 (:mod:`zrp_ga.operators.subset`); the baselines are :mod:`zrp_ga.algorithms.subsets`.
 
 What counts is judged at the end, not per generation (the convergence log's validation
@@ -35,6 +35,8 @@ from zrp_ga.metrics import Judge
 from zrp_ga.operators import subset
 from zrp_ga.problem import CalibrationProblem
 from zrp_ga.problems import Task, half_ranges
+from zrp_ga.problems.measured import MeasuredTask, from_measurements, read_sets
+from zrp_ga.problems.protocol import GeneBlocks, Identifiable, Problem, Repairing, Sampling, SelfJudging
 from zrp_ga.robot import ZRPRobot
 
 Array = NDArray[np.float64]
@@ -42,10 +44,13 @@ SELECTED = "selected_poses.csv"
 
 
 @dataclasses.dataclass
-class SelectionProblem:
+class SelectionProblem(Problem, Sampling, Repairing, GeneBlocks, Identifiable):
     """Choose ``k`` of the poses of ``calibration`` (the calibration problem on all candidates,
     whose nominal arm, data, layout and weights define the Jacobian) to minimise the cost of
     ``index`` (``observability.index_cost``). Genomes: k candidate indices in [0, N), as floats.
+    Its parts (:mod:`zrp_ga.problems.protocol`): the costs, its own sampling and repair of
+    subsets, one gene block, and the identifiability of its candidates; no Jacobian (no
+    least squares, no pseudo-inverse step on subsets).
     ``length_m``: the scale of angle parameters (None: the arm's summed body-vector lengths);
     ``rcond``: which directions count as identifiable; ``ridge``: information added to every
     subset's, relative to the mean eigenvalue of one candidate's (keeps subsets that identify
@@ -85,12 +90,21 @@ class SelectionProblem:
     def n_candidates(self) -> int:
         return self.calibration.data.M
 
-    # what summary.diagnostics asks of a problem: the candidates' identifiability
-    nominal = property(lambda self: self.calibration.nominal)
-    data = property(lambda self: self.calibration.data)
-    layout = property(lambda self: self.calibration.layout)
+    # --- Identifiable: the candidates' calibration data, whose identifiability a run records ----
+    @property
+    def nominal(self) -> ZRPRobot:
+        return self.calibration.nominal
+
+    @property
+    def data(self) -> Measurements:
+        return self.calibration.data
+
+    @property
+    def layout(self) -> Layout:
+        return self.calibration.layout
 
     def identifiability(self) -> error_model.IdentifiabilityReport:
+        """The identifiability of all candidates together (:meth:`CalibrationProblem.identifiability`)."""
         return self.calibration.identifiability()
 
     # --- a population -----------------------------------------------------------------------
@@ -111,7 +125,7 @@ class SelectionProblem:
         X = np.atleast_2d(X)
         return observability.index_cost(self.information(X), X.shape[1], self.index.value)
 
-    # --- the GA's hooks for a combinatorial genome -------------------------------------------
+    # --- Sampling and Repairing: a combinatorial genome --------------------------------------
     def sample(self, rng: np.random.Generator, size: int) -> Array:
         """``size`` subsets, uniform: (size, k)."""
         return subset.sample(rng, size, self.k, self.n_candidates)
@@ -156,9 +170,10 @@ def judge(task: Task) -> Judgement:
 
 
 @dataclasses.dataclass
-class SelectionTask(Task):
+class SelectionTask(Task, SelfJudging):
     """A pose-selection instance. ``calibrate_on(rows)`` builds the calibration task of some
-    candidate rows; ``reference``: also judge the calibration on all candidates."""
+    candidate rows; ``reference``: also judge the calibration on all candidates. It judges its
+    own results (:class:`zrp_ga.problems.protocol.SelfJudging`): :meth:`judged`, :meth:`params_table`."""
 
     problem: SelectionProblem
     calibrate_on: Callable[[NDArray[np.intp]], Task] | None = None
@@ -262,9 +277,8 @@ class SelectionTask(Task):
 def _entry(j: Judgement) -> dict[str, Any]:
     out = {"val_rms_mm": j.val_rms_m[1] * 1e3, "val_max_mm": j.val_max_m[1] * 1e3, "param_err": j.param_err[1],
            "fit_rms_mm": j.fit_rms_m * 1e3, "nominal_val_rms_mm": j.val_rms_m[0] * 1e3, "lm_nevals": j.nevals}  # fmt: skip
-    registration = getattr(j.task, "registration", None)  # measured data: registered to these rows
-    if registration is not None:
-        out["registration_rms_mm"] = registration.rms * 1e3
+    if isinstance(j.task, MeasuredTask) and j.task.registration is not None:  # measured: registered to these rows
+        out["registration_rms_mm"] = j.task.registration.rms * 1e3
     return out
 
 
@@ -303,8 +317,6 @@ def simulated(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any
 def measured(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any]:
     """The rows of ``calibration_file`` as candidates, validated on ``validation_file`` (or a
     random ``validation_fraction`` of the rows); each calibration registers to its own rows."""
-    from zrp_ga.problems.measured import from_measurements, read_sets
-
     cand, val = read_sets(robot, seed, c)
     on = lambda rows: from_measurements(robot, cand.subset(rows), val, c, underdetermined=True)
     files = {"calibration": cand.source, "validation": val.source if val is not None else None}
@@ -319,7 +331,7 @@ def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> SelectionTask:
     parts = measured(robot, run_seed, c) if c.calibration_file else simulated(robot, run_seed, c)
     everything = parts["calibrate_on"](np.arange(parts["candidates"].M))
     problem = SelectionProblem(everything.problem, c.k, c.index, c.length_scale, c.rcond, c.ridge)
-    cheap = Judge(problem.layout, problem.nominal)  # per generation: nothing (see the module docstring)
+    cheap = Judge(everything.problem.layout, everything.problem.nominal)  # per generation: nothing (see the module docstring)
     task = SelectionTask(c.name or parts["name"], problem, cheap, robot, parts["info"], calibrate_on=parts["calibrate_on"],
                          candidates=parts["candidates"], reference=c.reference, truth_x=parts["truth_x"])  # fmt: skip
     task.info.update(k=c.k, index=c.index.value, candidates=problem.n_candidates, identifiable_directions=problem.m)

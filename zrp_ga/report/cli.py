@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
 import os
 import shutil
 import tempfile
@@ -16,37 +15,22 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from zrp_ga.report.common import BUDGETS, LEVELS, ROUND_OFF, ReportError, markdown
+
 if TYPE_CHECKING:
-    import pandas as pd
 
     from zrp_ga.report.runs import Run
     from zrp_ga.report.targets import TargetRule
 
-class ReportError(ValueError):
-    """What is wrong with the command's input, in one line (the command prints it and exits with 2)."""
-
-
-LEVELS = (1.5, 1.1, 1.05, 1.01)  # target levels c (targets c x f_ref)
-BUDGETS = (100, 1_000, 10_000)  # fixed budgets, evaluations
-ROUND_OFF = 1e-9  # a floor below ROUND_OFF x nominal cost is round-off
 
 # Every name the report writes (with .csv/.md/.png/.pdf): one left from an earlier report into the
 # same folder that this one does not write is removed, so that the folder never mixes two reports.
 STEMS = ("targets", "summary", "per_instance", "ert", "ecdf", "fixed_budget", "ranks", "statistics", "factors", "runs",
          "tidy", "left_out", "fig2_convergence", "convergence_by_configuration", "ecdf_evals_to_target",
          "validation_error_boxplot", "critical_difference", "table2_initial_population", "table3_best_params",
-         "ranks_nemenyi")  # fmt: skip
+         "ranks_nemenyi", "index", "ecdf_by_instance", "within_instances", "factors_by_instance", "ecdf_targets")  # fmt: skip
+FORMATS = ("png", "pdf", "svg")
 IOH = "ioh"
-
-
-def markdown(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
-    """A DataFrame as a Markdown table (floats with ``floatfmt``)."""
-    cols = [str(c) for c in df.columns]
-    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for row in df.itertuples(index=False):
-        cells = [format(v, floatfmt) if isinstance(v, float) else str(v) for v in row]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
 
 
 def _matches(run: Run, wanted: dict[str, str]) -> bool:
@@ -115,12 +99,31 @@ def _publish(stage: Path, out: Path, ioh: Path) -> None:
 
 
 def _write_tables(t: dict, stage: Path) -> None:
-    for name in ("targets", "summary", "per_instance", "ert", "ecdf", "fixed_budget", "statistics", "factors", "runs", "tidy"):
-        t["floors" if name == "targets" else name].to_csv(stage / f"{name}.csv", index=False)
-    for name in ("targets", "summary", "per_instance", "statistics", "factors"):
-        df = t["floors" if name == "targets" else name]
+    names = {"targets": "floors", "within_instances": "within"}
+    for name in ("targets", "summary", "per_instance", "ert", "ecdf", "fixed_budget", "statistics", "factors", "runs", "tidy",
+                 "within_instances"):  # fmt: skip
+        t[names.get(name, name)].to_csv(stage / f"{name}.csv", index=False)
+    for name in ("targets", "summary", "per_instance", "statistics"):
+        df = t[names.get(name, name)]
         if len(df):
             (stage / f"{name}.md").write_text(markdown(df))
+    w = t["within"]
+    if len(w):
+        keep = (w["a"] == "all") | (w["a"] == w["best"]) | (w["b"] == w["best"])
+        (stage / "within_instances.md").write_text(
+            "Within each instance, on the final cost: the omnibus test (Holm over the instances) and the best configuration "
+            "against each other (Holm over the instance's pairs); effect = P(a ends lower than b) [95% bootstrap CI]\n\n"
+            + markdown(w[keep]))  # fmt: skip
+    f, med = t["factors"], t["factor_medians"]
+    if len(f):
+        keep = (f["a"] == "all") | (f["a"] == f["best"]) | (f["b"] == f["best"])
+        (stage / "factors.md").write_text(
+            "Each setting over the others, on final cost / f_ref, per instance and over all instances; omnibus p-values "
+            "Holm-corrected over the instances, pairwise ones over the pairs; effect = P(a ends lower than b) [95% bootstrap CI]\n\n"
+            + markdown(f[keep]))  # fmt: skip
+        wide = med.pivot_table(index=["setting", "value"], columns="instance", values="median_final_over_ref", sort=False)
+        (stage / "factors_by_instance.md").write_text(
+            "Median final cost / f_ref of each value of each setting, per instance and over all\n\n" + markdown(wide.reset_index()))
     order = list(t["summary"]["configuration"])
     wide = t["fixed_budget_all"].pivot(index="configuration", columns="budget", values="median_cost_over_ref").reindex(order)
     wide.columns = [f"at {b:,} evaluations" for b in wide.columns]
@@ -144,40 +147,8 @@ def _friedman_line(t: dict) -> str:
     if f is None:
         return f"Ranks across instances: not computed ({t['friedman_note'].strip()})"
     stat = f"chi2 = {f['statistic']:.3g}" if f["test"] == "Friedman" else f"{f['statistic']:.0f} wins of the first"
-    return (f"{f['test']} test over {f['instances']} instances and {f['configurations']} configurations: {stat}, "
+    return (f"{f['test']} over {f['instances']} instances and {f['configurations']} configurations: {stat}, "
             f"p = {f['p']:.3g}; Nemenyi critical difference {f['cd']:.2f} ranks{t['friedman_note']}")  # fmt: skip
-
-
-def _draw(runs: list[Run], t: dict, stage: Path, formats: tuple[str, ...], rule: TargetRule, max_lines: int = 10) -> list[str]:
-    """The figures; returns the configurations drawn (the ``max_lines`` best)."""
-    from zrp_ga.report import figures
-
-    order = list(t["summary"]["configuration"])
-    shown = order[:max_lines]
-    note = f" ({len(shown)} best of {len(order)} configurations)" if len(order) > len(shown) else ""
-    labels = t["labels"]
-    one = t["floors"]["instance"].nunique() == 1
-    reference = t["floors"].set_index("instance")["reference"]
-    scale = {i: 1.0 if one else (float(v) if v > 0 else math.nan) for i, v in reference.items()}
-    ylabel = figures.COST_LABEL if one else "best cost / f_ref of its instance"
-    figures.convergence_by_configuration(runs, labels, shown, scale, ylabel, note, stage, formats)
-    if len(t["ecdf"]):
-        what = ", ".join(rule.names()) + (" x f_ref" if rule.absolute is None else "")
-        ends = t["runs"].groupby("configuration")["nevals"].max().to_dict()
-        figures.ecdf(t["ecdf"], [s for s in shown if s in set(t["ecdf"]["configuration"])], ends, what, note, stage, formats)
-    figures.validation_boxplot(t["runs"], shown, note, stage, formats)
-    if t["friedman"] is not None:
-        figures.critical_difference(t["friedman"], stage, formats)
-    return shown
-
-
-def median_runs(runs: list[Run], labels: list[str], order: list[str]) -> list[tuple[str, Run]]:
-    """For each configuration (in ``order``), its run with the median final cost."""
-    out = []
-    for label in order:
-        members = sorted((r for r, lab in zip(runs, labels) if lab == label), key=lambda r: (math.isnan(r.final_cost), r.final_cost))
-        out.append((label, members[(len(members) - 1) // 2]))
-    return out
 
 
 def _paper_tables(run: Run, stage: Path) -> list[str]:
@@ -196,12 +167,13 @@ def _paper_tables(run: Run, stage: Path) -> list[str]:
 def write_report(paths: list[str | Path], out: str | Path | None = None, target: float | None = None, only: list[str] = (),
                  levels: tuple[float, ...] = LEVELS, budgets: tuple[int, ...] = BUDGETS,
                  round_off: float = ROUND_OFF, ioh: str | Path | None = None,
-                 formats: tuple[str, ...] = ("png", "pdf")) -> dict:  # fmt: skip
+                 formats: tuple[str, ...] = FORMATS, style: str = "paper", command: str | None = None) -> dict:  # fmt: skip
     """Build every table and figure of the runs under ``paths`` into ``out``, the IOHprofiler
     export into ``ioh`` (default ``out/ioh``); returns the tables. ``only``: ``KEY=VALUE``
     settings a run must have been given to count (e.g. ``refine=none``); ``target``: one
     absolute target cost instead of ``levels`` x f_ref; ``formats``: of the figures (none: no
-    figures). Bad input is a ReportError (a ValueError, one line), raised before anything is
+    figures); ``style``: ``paper`` (3.5 in wide, 8-9 pt) or ``screen``; ``command``: what the
+    page says made it. Also writes ``index.html``, the report as one page. Bad input is a ReportError (a ValueError, one line), raised before anything is
     written."""
     if not paths:
         raise ReportError("no directory given")
@@ -211,7 +183,7 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
         import pandas as pd
         from matplotlib.backend_bases import FigureCanvasBase
 
-        from zrp_ga.report import figures, ioh_export
+        from zrp_ga.report import drawing, figures, ioh_export, page
         from zrp_ga.report.runs import find_runs, parse_overrides
         from zrp_ga.report.tables import build_tables
         from zrp_ga.report.targets import TargetRule
@@ -220,6 +192,8 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
         if unknown:
             raise ReportError(f"--formats: {unknown[0]} is not a figure format "
                               f"({', '.join(sorted(FigureCanvasBase.get_supported_filetypes()))})")  # fmt: skip
+        if style not in figures.STYLES:
+            raise ReportError(f"--style: {style} is not a style ({', '.join(figures.STYLES)})")
         rule = TargetRule(tuple(dict.fromkeys(levels)), target, round_off)
         runs, left = find_runs(paths)
         wanted = parse_overrides(list(only))
@@ -231,18 +205,24 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
         t = build_tables(runs, rule, tuple(budgets))
         t["rule"] = rule
         _write_tables(t, stage)
-        chosen = median_runs(runs, t["labels"], list(t["summary"]["configuration"])[:4])
-        shown = _draw(runs, t, stage, tuple(formats), rule) if formats else []
+        figs, shown = [], []
         if formats:
-            figures.convergence_runs(chosen, stage, tuple(formats))
-        unread = _paper_tables(chosen[0][1], stage)
+            with figures.style(style):
+                figs, shown = drawing.draw(runs, t, stage, tuple(formats), rule)
+        if "ecdf_targets" in t:
+            t["ecdf_targets"].to_csv(stage / "ecdf_targets.csv", index=False)
+        order = list(t["summary"]["configuration"])
+        single = drawing.median_runs(runs, t["labels"], order[:1])[0][1]
+        unread = _paper_tables(single, stage)
         (stage / IOH).mkdir()
         notes = [f"not in the IOH export: {p} ({why})" for p, why in ioh_export.export(runs, t["labels"], t["shown"], stage / IOH)]
         notes += [f"no Table 2 or 3: {p} cannot be read" for p in unread]
         t["left_out"], t["notes"] = pd.DataFrame(left, columns=["run", "reason"]), notes
         t["left_out"].to_csv(stage / "left_out.csv", index=False)
+        made = command or "zrp-ga-report " + " ".join(map(str, paths)) + f" --out {out}"
+        page.write(stage / "index.html", t, figs, runs, made, [str(p) for p in paths])
         _publish(stage, out, ioh)
-    t.update(shown_in_figures=shown, single_run=str(chosen[0][1].path), out=str(out))
+    t.update(shown_in_figures=shown, single_run=str(single.path), out=str(out))
     return t
 
 
@@ -270,9 +250,16 @@ def console(t: dict, max_rows: int = 12) -> str:
     for n in rule.names():
         table[f"ERT {n}"] = s[f"ert_{n}"]
     lines.append(markdown(table.rename(columns={"final_over_ref_median": "final/f_ref, median", "val_rms_mm_median": "val RMS mm, median"})))
+    from zrp_ga.report import conclusions
+
     lines.append(_friedman_line(t))
     if t["friedman"] is not None:
         lines.append("mean ranks: " + ", ".join(f"{k} {v:.2f}" for k, v in t["friedman"]["mean_ranks"].items()))
+    for heading, said in conclusions.sentences(t).items():
+        if said:
+            lines.append(f"\n{heading}:")
+            lines += [f"- {x}" for x in said]
+    lines.append(f"\nThe report as one page: {Path(t['out']) / 'index.html'}")
     return "\n".join(lines)
 
 
@@ -308,11 +295,17 @@ def main(argv: list[str] | None = None) -> None:
                    help="fixed budgets in evaluations (default 100,1000,10000)")
     p.add_argument("--only", action="append", default=[], metavar="KEY=VALUE",
                    help="keep only the runs given this setting (repeatable), e.g. --only refine=none")
-    p.add_argument("--formats", default="png,pdf", help="figure formats, e.g. png,pdf,svg (default png,pdf; none: no figures)")
+    p.add_argument("--formats", default=",".join(FORMATS), help="figure formats (default png,pdf,svg; none: no figures)")
+    p.add_argument("--style", default="paper", choices=("paper", "screen"),
+                   help="figures for a paper's column (3.5 in, 8-9 pt; the default) or for a screen (7 in, 10 pt)")
     args = p.parse_args(argv)
+    import shlex
+    import sys
+
+    command = shlex.join(["zrp-ga-report", *(sys.argv[1:] if argv is None else argv)])
     try:
         t = write_report(args.dirs, args.out, args.target, args.only, args.levels, args.budgets, args.round_off, args.ioh,
-                         tuple(f for f in args.formats.split(",") if f and f != "none"))  # fmt: skip
+                         tuple(f for f in args.formats.split(",") if f and f != "none"), args.style, command)  # fmt: skip
     except ReportError as exc:
         p.exit(2, f"zrp-ga-report: error: {exc}\n")
     print(console(t))

@@ -1,6 +1,6 @@
 """Runs in IOHprofiler's format, for IOHanalyzer (upload the folder, zipped) and IOHinspector.
 
-The layout is the one the ``ioh`` package's ``logger.Analyzer`` writes (ioh 0.3): one folder per
+The layout is the one the ``ioh`` package's ``logger.Analyzer`` writes (ioh 0.4.2): one folder per
 algorithm (here: per configuration) holding, per function (here: per problem instance), a meta
 file ``IOHprofiler_f<id>_<name>.json`` and a data file ``data_f<id>_<name>/IOHprofiler_f<id>_DIM<D>.dat``.
 The data file has one block per run: a line ``evaluations raw_y``, then ``<evaluations> <cost>``
@@ -8,8 +8,12 @@ lines from evaluation 1, at each improvement of the best cost and at the run's l
 (the cost written is the best so far, which is what IOHanalyzer analyses; a run whose
 initial_population.csv cannot be read has its first row's best from evaluation 1 on). Costs are written
 exactly (``repr``), not with ioh's ten fixed decimals, which would turn round-off-level costs
-into 0. Minimisation; D is the genome's length; every run is instance 1 of its function;
-function ids number the instances 1, 2, ... in name order. No other file may be in the folder:
+into 0. Minimisation; D is the genome's length. IOHprofiler's conventions: a function is one
+problem (here one problem instance of the suite, as it is one for every configuration) and its
+repetitions are told apart by their instance ids (IOHanalyzer averages over them): a run's
+instance id is its seed (summary.json's ``seed``; the runs of a function without a usable seed
+are numbered 1, 2, ... instead). Function ids number the problem instances 1, 2, ... in name
+order, the same in every configuration's folder. No other file may be in the folder:
 IOHanalyzer takes a .csv or .txt file beside the data as another format and refuses the folder.
 """
 
@@ -23,8 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from zrp_ga.report.runs import Run
+from zrp_ga.report.targets import dimension
 
-FORMAT_VERSION = "0.3.22"  # the ioh release whose Analyzer output this layout follows
+FORMAT_VERSION = "0.4.2"  # the ioh release whose Analyzer output this layout follows
 
 
 def safe_name(text: str) -> str:
@@ -34,12 +39,6 @@ def safe_name(text: str) -> str:
     'GA_sbx_crossover'
     """
     return re.sub(r"[^A-Za-z0-9.\-]+", "_", text).strip("_") or "unnamed"
-
-
-def dimension(run: Run) -> int:
-    """The genome's length, from summary.json's ``best_genome`` (0 when it is missing)."""
-    genome = run.summary.get("best_genome")
-    return len(genome) if isinstance(genome, (dict, list)) else 0
 
 
 def lines(run: Run) -> list[str]:
@@ -56,13 +55,22 @@ def lines(run: Run) -> list[str]:
     return out
 
 
+def instance_ids(runs: list[Run]) -> list[int]:
+    """Each run's IOHprofiler instance id: its seed when every run has a distinct non-negative
+    integer seed, else 1, 2, ... in the runs' order."""
+    seeds = [r.summary.get("seed") for r in runs]
+    if all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds) and len(set(seeds)) == len(seeds):
+        return seeds
+    return list(range(1, len(runs) + 1))
+
+
 def _meta(fid: int, name: str, label: str, info: str, dim: int, path: str, runs: list[Run]) -> dict:
     records = []
-    for r in runs:
+    for r, iid in zip(runs, instance_ids(runs)):
         at = int(r.evals[int(np.argmin(r.best))])
         genome = r.summary.get("best_genome")
         x = list(genome.values()) if isinstance(genome, dict) else list(genome or [])
-        records.append({"instance": 1, "evals": max(r.nevals, int(r.evals[-1])), "best": {"evals": at, "y": float(r.best[-1]), "x": x}})
+        records.append({"instance": iid, "evals": max(r.nevals, int(r.evals[-1])), "best": {"evals": at, "y": float(r.best[-1]), "x": x}})
     return {
         "version": FORMAT_VERSION, "suite": "zrp_ga", "function_id": fid, "function_name": name, "maximization": False,
         "algorithm": {"name": label, "info": info}, "attributes": ["evaluations", "raw_y"],

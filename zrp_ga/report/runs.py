@@ -23,6 +23,7 @@ import pandas as pd
 import yaml
 
 from zrp_ga.hydra_callbacks import MANIFEST
+from zrp_ga.report.common import ReportError
 
 Array = np.ndarray
 IGNORED_KEYS = ("hydra", "experiment", "progress", "checkpoint_every")
@@ -272,8 +273,6 @@ def find_runs(paths: list[str | Path]) -> tuple[list[Run], list[tuple[str, str]]
     """Runs under ``paths`` (run directories, sweep directories, or folders holding them), and
     the ones left out as (path, reason): failed, still running, interrupted, malformed files.
     A missing path or a file given as a directory is a ReportError (a ValueError, one line)."""
-    from zrp_ga.report.cli import ReportError
-
     roots = []
     for p in paths:
         path = Path(p)

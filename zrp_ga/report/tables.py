@@ -124,16 +124,87 @@ def _friedman(runs_df: pd.DataFrame, floors: pd.DataFrame) -> tuple[dict | None,
     return result, note
 
 
-def _factors(runs_df: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
-    """Mann-Whitney per setting on the final cost, pooling the other settings (runs that have the setting)."""
+def _blocks(df: pd.DataFrame, columns: list[str]) -> pd.Index:
+    """Each run's block: its values of ``columns`` (the seed, the other settings, the instance)."""
+    if not columns:
+        return pd.RangeIndex(len(df))
+    return pd.MultiIndex.from_frame(df[columns].astype(str)) if len(columns) > 1 else pd.Index(df[columns[0]].astype(str))
+
+
+def _seed_blocks(g: pd.DataFrame) -> pd.DataFrame:
+    """``g`` with a ``block`` column: the seed, or the run itself when the seed is unknown (then
+    no two configurations share a block)."""
+    seed = g["seed"].where(g["seed"].notna(), g["run"]).astype(str)
+    return g.assign(block=seed)
+
+
+def within_instances(runs_df: pd.DataFrame) -> pd.DataFrame:
+    """Per instance: the configurations compared on the final cost, paired by seed when they share
+    their seeds (:func:`zrp_ga.report.stats.compare_design`); the omnibus p-values Holm-adjusted
+    over the instances (``p_holm`` of the rows ``a == "all"``); confidence intervals for the
+    pairs holding the instance's best configuration (lowest median final cost), named in ``best``."""
     out = []
-    for k in keys:
-        having = runs_df[runs_df[k] != ""]
-        by_value = {describe(k, v): g["final_cost"].to_numpy(dtype=float) for v, g in having.groupby(k, sort=True)}
-        f = stats.compare(by_value, "final_cost")
-        f.insert(0, "setting", k)
-        out.append(f)
-    return pd.concat(out, ignore_index=True) if out else pd.DataFrame(columns=["setting", *stats.COMPARE_COLUMNS])
+    for instance, g in runs_df.groupby("instance", sort=False):
+        g = _seed_blocks(g)
+        groups = {lab: pd.Series(h["final_cost"].to_numpy(dtype=float), index=h["block"]) for lab, h in g.groupby("configuration", sort=False)}
+        if len(groups) < 2:
+            continue
+        best = g.groupby("configuration", sort=False)["final_cost"].median().idxmin()
+        t = stats.compare_design(groups, best=best)
+        t.insert(0, "instance", instance)
+        t.insert(1, "best", best)
+        out.append(t)
+    if not out:
+        return pd.DataFrame(columns=["instance", "best", *stats.DESIGN_COLUMNS])
+    df = pd.concat(out, ignore_index=True)
+    omnibus = df["a"] == "all"
+    if omnibus.any():
+        df.loc[omnibus, "p_holm"] = stats.holm(df.loc[omnibus, "p"].to_numpy())
+    return df
+
+
+def factorial(runs_df: pd.DataFrame, keys: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The main effect of each setting over the others, per instance and across instances
+    (``instance`` "all"): the values of the setting compared on final cost / f_ref, paired by the
+    other settings and the seed (and the instance, across instances) when every value ran on the
+    same such blocks, else as independent runs; per setting, the omnibus p-values are
+    Holm-adjusted over the instances (the row "all" is not). Returns the tests and the median
+    final / f_ref per (setting, instance, value)."""
+    tests, medians = [], []
+    for key in keys:
+        having = runs_df[runs_df[key] != ""]
+        if having[key].nunique() < 2:
+            continue
+        others = [k for k in keys if k != key]
+        per_setting = []
+        for instance, g in [*having.groupby("instance", sort=False), ("all", having)]:
+            g = _seed_blocks(g)
+            block_cols = others + ["block"] + (["instance"] if instance == "all" else [])
+            index = _blocks(g, block_cols)
+            values = g["final_over_ref"].to_numpy(dtype=float)
+            groups = {}
+            for v in sorted(g[key].unique(), key=str):
+                mask = (g[key] == v).to_numpy()
+                groups[describe(key, str(v))] = pd.Series(values[mask], index=index[mask])
+                medians.append(dict(setting=key, instance=instance, value=describe(key, str(v)), runs=int(mask.sum()),
+                                    median_final_over_ref=float(np.nanmedian(values[mask])) if mask.any() else math.nan))  # fmt: skip
+            if len(groups) < 2:
+                continue
+            best = min(groups, key=lambda k: np.nanmedian(groups[k].to_numpy()))
+            t = stats.compare_design(groups, best=best)
+            t.insert(0, "setting", key)
+            t.insert(1, "instance", instance)
+            t.insert(2, "best", best)
+            per_setting.append(t)
+        if per_setting:
+            df = pd.concat(per_setting, ignore_index=True)
+            sel = (df["a"] == "all") & (df["instance"] != "all")
+            if sel.any():
+                df.loc[sel, "p_holm"] = stats.holm(df.loc[sel, "p"].to_numpy())
+            tests.append(df)
+    columns = ["setting", "instance", "best", *stats.DESIGN_COLUMNS]
+    return (pd.concat(tests, ignore_index=True) if tests else pd.DataFrame(columns=columns),
+            pd.DataFrame(medians, columns=["setting", "instance", "value", "runs", "median_final_over_ref"]))  # fmt: skip
 
 
 def build_tables(runs: list[Run], rule: TargetRule | None = None, budgets: tuple[int, ...] = targets.BUDGETS) -> dict:
@@ -155,11 +226,13 @@ def build_tables(runs: list[Run], rule: TargetRule | None = None, budgets: tuple
     statistics = pd.concat([stats.compare(v, m) for m, v in groups.items()], ignore_index=True)
     friedman, friedman_note = _friedman(runs_df, floors)
     summary = _summary(runs_df, ert_all, rule)
+    factors, factor_medians = factorial(runs_df, keys)
     return dict(
         labels=labels, shown=shown, keys=keys, floors=floors, hits=hits, runs=runs_df, tidy=tidy,
         summary=summary, per_instance=_per_instance(runs_df, ert_inst, rule, list(summary["configuration"])),
         ert=pd.concat([ert_all.assign(instance="all", target=np.nan), ert_inst], ignore_index=True)[
             ["configuration", "instance", "level", "target", "runs", "successes", "success_rate", "ert"]],
         ecdf=targets.ecdf(hits), fixed_budget=budget_inst, fixed_budget_all=budget_all, statistics=statistics,
-        factors=_factors(runs_df, keys), friedman=friedman, friedman_note=friedman_note,
+        factors=factors, factor_medians=factor_medians, within=within_instances(runs_df), friedman=friedman,
+        friedman_note=friedman_note,
     )  # fmt: skip

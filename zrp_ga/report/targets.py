@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from zrp_ga.report.cli import BUDGETS, LEVELS, ROUND_OFF  # the command's defaults  # noqa: F401
+from zrp_ga.report.common import BUDGETS, LEVELS, ROUND_OFF  # the command's defaults  # noqa: F401
 from zrp_ga.report.runs import Run, number
 
 
@@ -115,11 +115,11 @@ def ert(hits_: pd.DataFrame, by: list[str]) -> pd.DataFrame:
     return pd.DataFrame(out, columns=[*by, "runs", "successes", "success_rate", "ert"])
 
 
-def ecdf(hits_: pd.DataFrame) -> pd.DataFrame:
+def ecdf(hits_: pd.DataFrame, start: float = 1.0) -> pd.DataFrame:
     """The fixed-target ECDF per configuration, aggregated over (instance, level) pairs: at each
     budget b, the mean over the configuration's pairs of the share of its runs on that instance
     that hit the level's target within b evaluations (each pair weighs the same, however many
-    runs it has). Rows (configuration, evaluations, fraction) at each step, from (1, 0)."""
+    runs it has). Rows (configuration, evaluations, fraction) at each step, from (``start``, 0)."""
     rows = []
     for label, g in hits_.groupby("configuration", sort=False):
         n_pairs = g.groupby(["instance", "level"]).ngroups
@@ -127,7 +127,7 @@ def ecdf(hits_: pd.DataFrame) -> pd.DataFrame:
         weight = 1.0 / (n_pairs * runs_per_pair.to_numpy())
         ok = np.isfinite(g["hit"].to_numpy())
         steps = pd.Series(weight[ok]).groupby(g["hit"].to_numpy()[ok]).sum().sort_index()
-        rows.append(dict(configuration=label, evaluations=1.0, fraction=0.0))
+        rows.append(dict(configuration=label, evaluations=float(start), fraction=0.0))
         for e, frac in zip(steps.index, np.cumsum(steps.to_numpy())):
             rows.append(dict(configuration=label, evaluations=float(e), fraction=float(frac)))
     df = pd.DataFrame(rows, columns=["configuration", "evaluations", "fraction"])
@@ -165,3 +165,43 @@ def fixed_budget(runs: list[Run], labels: list[str], table: pd.DataFrame, budget
     df = pd.DataFrame(rows, columns=["configuration", "instance", "budget", "ratio"])
     return (df.groupby(["configuration", "instance", "budget"], sort=False)["ratio"]
               .agg(runs="size", median_cost_over_ref="median").reset_index())  # fmt: skip
+
+
+ECDF_TARGETS = 51  # COCO's: five per decade over ten decades
+PER_DECADE = 5
+
+
+def dimension(run: Run) -> int:
+    """The genome's length, from summary.json's ``best_genome`` (0 when it is missing)."""
+    genome = run.summary.get("best_genome")
+    return len(genome) if isinstance(genome, (dict, list)) else 0
+
+
+def ecdf_targets(runs: list[Run], table: pd.DataFrame, n: int = ECDF_TARGETS, per_decade: int = PER_DECADE) -> dict[str, np.ndarray]:
+    """The runtime ECDF's targets per instance, as COCO sets them above the optimum: f_ref +
+    (f0 - f_ref) 10^(-k / per_decade) for k = 0 .. n - 1, f0 the instance's starting cost (the
+    median over its runs of the cost of the first evaluation), f_ref its reference (none when
+    either is not finite or f0 <= f_ref)."""
+    reference = table.set_index("instance")["reference"]
+    out = {}
+    for instance, group in _by_instance(runs).items():
+        f0 = float(np.median([r.best[0] for r in group]))
+        ref = float(reference.loc[instance])
+        if math.isfinite(f0) and math.isfinite(ref) and f0 > ref:
+            out[instance] = ref + (f0 - ref) * 10.0 ** (-np.arange(n) / per_decade)
+    return out
+
+
+def runtime_hits(runs: list[Run], labels: list[str], targets_: dict[str, np.ndarray]) -> pd.DataFrame:
+    """One row per (run, ECDF target): as :func:`hits` (``level`` the target's number k) with
+    ``hit`` and ``nevals`` divided by the run's genome length (evaluations per gene, as COCO
+    divides by the dimension; by 1 when the length is unknown)."""
+    rows = []
+    for r, label in zip(runs, labels):
+        if r.instance not in targets_:
+            continue
+        dim = max(dimension(r), 1)
+        for k, target in enumerate(targets_[r.instance]):
+            rows.append((str(r.path), label, r.instance, f"t{k:02d}", float(target), first_hit(r.evals, r.best, target) / dim,
+                         r.nevals / dim))  # fmt: skip
+    return pd.DataFrame(rows, columns=["run", "configuration", "instance", "level", "target", "hit", "nevals"])

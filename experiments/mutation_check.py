@@ -1,0 +1,229 @@
+"""Planted bugs, one at a time, and whether the tests named for each one catch it.
+
+Each plant is one dict in ``PLANTS``: the ``file`` (relative to the repository), the exact ``old``
+text (it must occur exactly once: a plant whose text has moved is reported as stale, not as
+caught), the ``new`` text, the ``tests`` expected to catch it and ``what`` the bug is. For each
+plant the script applies it to a copy of the repository (the working tree is never touched),
+runs ``python -m pytest -x -q -p no:cacheprovider TESTS`` there with the copy first on
+``PYTHONPATH``, records caught (pytest failed) or survived (it passed), and puts the file back.
+The named test files are first run once without any plant: they must pass, or a catch means
+nothing. The table goes to ``experiments/results/mutation_check.md``.
+
+    python experiments/mutation_check.py                 # every plant
+    python experiments/mutation_check.py --only sbx-     # plants whose name starts so
+    python experiments/mutation_check.py --list          # the plants, nothing run
+
+To add a plant, append a dict to ``PLANTS`` (the report and run-layer ones go at the end).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "experiments" / "results" / "mutation_check.md"
+TIMEOUT_S = 900  # per pytest call: a plant that makes a test hang counts as caught ("timeout")
+
+OPS = "tests/test_operator_distributions.py"
+REG = "tests/test_registration_values.py"
+WARN = "tests/test_warning_paths.py"
+MODEL = ["tests/test_so3.py", "tests/test_kinematics.py"]
+
+PLANTS: list[dict] = [
+    # --- operators: the distributions ---------------------------------------------------------
+    dict(name="sbx-bound-exponent", file="zrp_ga/operators/crossover.py",
+         old="alpha = 2.0 - beta ** -(eta + 1.0)", new="alpha = 2.0 - beta ** -eta", tests=[OPS],
+         what="SBX: the bound's term beta_b^-(eta+1) with exponent eta"),
+    dict(name="sbx-spread-exponent", file="zrp_ga/operators/crossover.py",
+         old="power = 1.0 / (eta + 1.0)", new="power = 1.0 / (eta + 2.0)", tests=[OPS],
+         what="SBX: spread factor to the power 1/(eta+2) instead of 1/(eta+1)"),
+    dict(name="sbx-children-not-swapped", file="zrp_ga/operators/crossover.py",
+         old="flip = rng.random(A.shape) <= 0.5", new="flip = rng.random(A.shape) <= 0.0", tests=[OPS],
+         what="SBX: the lower child always goes to the first parent"),
+    dict(name="polynomial-bound-exponent", file="zrp_ga/operators/mutation.py",
+         old="(1.0 - d1) ** (eta + 1.0)", new="(1.0 - d1) ** eta", tests=[OPS],
+         what="polynomial mutation: the lower bound's term with exponent eta instead of eta+1"),
+    dict(name="polynomial-power", file="zrp_ga/operators/mutation.py",
+         old="power = 1.0 / (eta + 1.0)", new="power = 1.0 / eta", tests=[OPS],
+         what="polynomial mutation: power 1/eta instead of 1/(eta+1)"),
+    dict(name="gaussian-sigma-unscaled", file="zrp_ga/operators/mutation.py",
+         old="rng.standard_normal(r.size) * (sigma * (up - low))[c]", new="rng.standard_normal(r.size) * sigma", tests=[OPS],
+         what="Gaussian mutation: sigma not scaled by the gene's range"),
+    dict(name="gaussian-sigma-other-gene", file="zrp_ga/operators/mutation.py",
+         old="(sigma * (up - low))[c]", new="(sigma * (up - low))[r % len(up)]", tests=[OPS],
+         what="Gaussian mutation: the width of another gene"),
+    dict(name="blend-alpha", file="zrp_ga/operators/crossover.py",
+         old="g = (1.0 + 2.0 * alpha) * rng.random(A.shape) - alpha", new="g = (1.0 + alpha) * rng.random(A.shape) - alpha",
+         tests=[OPS], what="BLX-alpha: gamma on [-alpha, 1] instead of [-alpha, 1 + alpha]"),
+    dict(name="uniform-reset-range", file="zrp_ga/operators/mutation.py",
+         old="rng.uniform(low, up, size=A.shape)", new="rng.uniform(low, up + 0.05 * (up - low), size=A.shape)", tests=[OPS],
+         what="uniform reset: the range 5% too wide"),
+    dict(name="tournament-size-plus-one", file="zrp_ga/operators/selection.py",
+         old="size=(k, size))", new="size=(k, size + 1))", tests=[OPS],
+         what="tournament: one entrant more than asked"),
+    dict(name="segment-never-last-locus", file="zrp_ga/operators/__init__.py",
+         old="x = (r[0] * span).astype(np.intp)", new="x = (r[0] * (span - 1)).astype(np.intp)", tests=[OPS],
+         what="segments: the first end never on the last locus (pairs not uniform)"),
+    dict(name="rotation-shift-range", file="zrp_ga/operators/rotation.py",
+         old="shift = 1 + (rng.random(N) * (j - i)).astype(np.intp)", new="shift = 1 + (rng.random(N) * (j - i - 1)).astype(np.intp)",
+         tests=[OPS], what="rotation: the largest shift never drawn"),
+    dict(name="block-choice-uniform", file="zrp_ga/operators/__init__.py",
+         old='pick = np.searchsorted(np.cumsum(sizes), rng.random(N) * sizes.sum(), side="right")',
+         new="pick = rng.integers(0, len(sizes), N)", tests=[OPS],
+         what="block moves: blocks chosen alike instead of by size"),
+    # --- registration ---------------------------------------------------------------------------
+    dict(name="registration-rms-is-mean", file="zrp_ga/registration.py",
+         old="return float(np.sqrt(np.mean(self.errors**2)))", new="return float(np.mean(self.errors))", tests=[REG],
+         what="registration: the RMS replaced by the mean distance"),
+    dict(name="far-registration-doubled", file="zrp_ga/problems/measured.py",
+         old="FAR_REGISTRATION = 0.02", new="FAR_REGISTRATION = 0.04", tests=[REG],
+         what="registration far off: 4% of the reach instead of 2%"),
+    dict(name="far-point-doubled", file="zrp_ga/measurements.py",
+         old="> 3.0 * (reach + TOOL_ALLOWANCE_M)", new="> 6.0 * (reach + TOOL_ALLOWANCE_M)", tests=[REG],
+         what="a measured point far from the others: six reaches instead of three"),
+    # --- warnings and what is returned ----------------------------------------------------------
+    dict(name="validation-warning-never", file="zrp_ga/summary.py",
+         old='if np.isfinite(val["calibrated"]) and val["calibrated"] > val["nominal"]:',
+         new='if np.isfinite(val["calibrated"]) and val["calibrated"] > 10 * val["nominal"]:', tests=[WARN],
+         what="the validation-worse warning only at 10x the nominal error"),
+    dict(name="diverged-keeps-optimiser", file="zrp_ga/summary.py",
+         old="return result.x is None or not np.isfinite(result.cost) or result.cost > nominal_cost",
+         new="return result.x is not None and result.cost > nominal_cost", tests=[WARN],
+         what="a diverged optimiser's result returned instead of the nominal arm"),
+    # --- the report (the coordinator adds the statistics and run-layer plants below) ------------
+    dict(name="report-validation-key", file="zrp_ga/report/runs.py",
+         old='self.summary.get("validation_rms_mm")', new='self.summary.get("validation_rms")',
+         tests=["tests/test_report_runs.py"], what="report: every run's validation error read as missing (NaN)"),
+    # --- the model ------------------------------------------------------------------------------
+    dict(name="rodrigues-sign", file="zrp_ga/so3.py",
+         old="return (1.0 - np.cos(q)) * A + np.sin(q) * skew(u) + _E", new="return (1.0 - np.cos(q)) * A - np.sin(q) * skew(u) + _E",
+         tests=MODEL, what="Rodrigues' formula with -sin q (the transposed rotation)"),
+    dict(name="reference-chain-transposed", file="zrp_ga/kinematics.py",
+         old="R = R @ so3.rodrigues(q[i], robot.u0[i])", new="R = R @ so3.rodrigues(q[i], robot.u0[i]).T",
+         tests=MODEL, what="forward_reference: each joint's rotation transposed"),
+    dict(name="forward-kernel-transposed", file="zrp_ga/kinematics.py",
+         old="ci, si = c[i], s[i]", new="ci, si = c[i], -s[i]",
+         tests=MODEL, what="the compiled forward kinematics: each joint's rotation transposed (R(-q))"),
+    dict(name="rodrigues-kernel-transposed", file="zrp_ga/_kernels.py",
+         old="ci, si, ti = c[i], s[i], t[i]", new="ci, si, ti = c[i], -s[i], t[i]",
+         tests=MODEL, what="the Rodrigues pose-cost kernel: each joint's rotation transposed"),
+    dict(name="matrix-kernel-transposed", file="zrp_ga/_kernels.py",
+         old="q00, q01, q02, q10, q11, q12, q20, q21, q22 = _rotation(ci, si, vi, ux, uy, uz)",
+         new="q00, q10, q20, q01, q11, q21, q02, q12, q22 = _rotation(ci, si, vi, ux, uy, uz)",
+         tests=MODEL, what="the matrix pose-cost kernel: joints 2..n rotations transposed"),
+    # --- units ----------------------------------------------------------------------------------
+    dict(name="mm-factor", file="zrp_ga/measurements.py",
+         old='LENGTH = {"m": 1.0, "mm": 1e-3}', new='LENGTH = {"m": 1.0, "mm": 1e-2}',
+         tests=["tests/test_measurement_files.py"], what="measurement files: a millimetre read as 1e-2 m"),
+    dict(name="std-not-scaled", file="zrp_ga/measurements.py",
+         old="std = np.column_stack([col[c] for c in fmt.std]) * u.length", new="std = np.column_stack([col[c] for c in fmt.std])",
+         tests=["tests/test_measurement_files.py"], what="measurement files: standard deviations left in file units"),
+    dict(name="prismatic-not-scaled", file="zrp_ga/measurements.py",
+         old='col[c] * (u.length if t == "P" else u.joint)', new='col[c] * (1.0 if t == "P" else u.joint)',
+         tests=["tests/test_measurement_files.py"], what="measurement files: prismatic joint values left in file units"),
+    dict(name="robot-file-mm-factor", file="zrp_ga/robot_files.py",
+         old='LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}', new='LENGTH_UNITS = {"m": 1.0, "mm": 1e-2}',
+         tests=["tests/test_robot_files.py"], what="robot files: a millimetre read as 1e-2 m"),
+]
+
+
+def copy_tree(dest: Path) -> Path:
+    """The repository without its environment, history and run outputs."""
+    skip = shutil.ignore_patterns(".venv", ".git", "__pycache__", "multirun", "outputs", "*.egg-info", ".pytest_cache")
+    shutil.copytree(ROOT, dest, ignore=skip, symlinks=True)
+    return dest
+
+
+def pytest(where: Path, tests: list[str]) -> tuple[int, float, str]:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(where), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
+    t0 = time.perf_counter()
+    try:
+        done = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests], cwd=where, env=env,
+                              capture_output=True, text=True, timeout=TIMEOUT_S)  # fmt: skip
+    except subprocess.TimeoutExpired:
+        return -1, time.perf_counter() - t0, "timeout"
+    lines = [ln for ln in done.stdout.splitlines() if ln.strip()]
+    first_failure = next((ln for ln in lines if ln.startswith("FAILED") or ln.startswith("ERROR")), "")
+    return done.returncode, time.perf_counter() - t0, first_failure or (lines[-1] if lines else done.stderr[-200:])
+
+
+def check_imports(where: Path) -> None:
+    env = dict(os.environ, PYTHONPATH=str(where))
+    out = subprocess.run([sys.executable, "-c", "import zrp_ga; print(zrp_ga.__file__)"], cwd=where, env=env,
+                         capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
+    if not out.startswith(str(where)):
+        sys.exit(f"mutation_check: the copy's zrp_ga is not the one imported ({out}); is another on PYTHONPATH?")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", nargs="*", default=None, help="plant names or name prefixes")
+    ap.add_argument("--list", action="store_true", help="list the plants and stop")
+    ap.add_argument("--out", type=Path, default=OUT)
+    args = ap.parse_args(argv)
+    plants = [p for p in PLANTS if args.only is None or any(p["name"].startswith(o) for o in args.only)]
+    if args.list:
+        for p in plants:
+            print(f"{p['name']:30} {p['file']:35} {p['what']}")
+        return 0
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="zrp_ga_mutation_") as tmp:
+        where = copy_tree(Path(tmp) / "repo")
+        check_imports(where)
+        for tests in sorted({tuple(p["tests"]) for p in plants}):
+            code, secs, line = pytest(where, list(tests))
+            print(f"unplanted {' '.join(tests)}: {'pass' if code == 0 else 'FAIL'} ({secs:.0f} s)", flush=True)
+            if code != 0:
+                sys.exit(f"mutation_check: {' '.join(tests)} fail without any plant: {line}")
+        for p in plants:
+            path = where / p["file"]
+            text = path.read_text()
+            if text.count(p["old"]) != 1:
+                rows.append((p, f"stale (old text found {text.count(p['old'])} times)", 0.0, ""))
+                print(f"{p['name']}: stale", flush=True)
+                continue
+            path.write_text(text.replace(p["old"], p["new"]))
+            try:
+                code, secs, line = pytest(where, p["tests"])
+            finally:
+                path.write_text(text)
+            result = "caught" if code == 1 else "survived" if code == 0 else "timeout" if code == -1 else f"caught (pytest exit {code})"
+            rows.append((p, result, secs, line))
+            print(f"{p['name']}: {result} ({secs:.0f} s) {line}", flush=True)
+    write(args.out, rows, argv)
+    caught = sum(r[1].startswith("caught") for r in rows)
+    print(f"{caught} of {len(rows)} plants caught; table in {args.out}")
+    return 0 if caught == len(rows) else 1
+
+
+def write(out: Path, rows: list, argv: list[str] | None) -> None:
+    cmd = " ".join(["python experiments/mutation_check.py", *(argv if argv is not None else sys.argv[1:])])
+    caught = sum(r[1].startswith("caught") for r in rows)
+    lines = [
+        "# Mutation check: planted bugs and the tests that catch them",
+        "",
+        f"Command: `{cmd}` (each plant applied alone to a copy of the repository; the named test files run with "
+        "`python -m pytest -x -q -p no:cacheprovider FILES`).",
+        "",
+        f"**{caught} of {len(rows)} plants caught.**",
+        "",
+        "| plant | file | bug | tests | result | s | first failing test |",
+        "| --- | --- | --- | --- | --- | ---: | --- |",
+    ]
+    for p, result, secs, line in rows:
+        test = line.removeprefix("FAILED ").removeprefix("ERROR ").split(" - ")[0].replace("|", "\\|")
+        tests = ", ".join(Path(t).name for t in p["tests"])
+        lines.append(f"| {p['name']} | {p['file']} | {p['what']} | {tests} | {result} | {secs:.0f} | {test} |")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

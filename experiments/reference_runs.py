@@ -1,0 +1,126 @@
+"""Reference runs of every kind, to show that a change of the run machinery changes no result.
+
+    python experiments/reference_runs.py OUT            # run them, write OUT/<name>.csv and OUT/<name>.json
+    python experiments/reference_runs.py --compare A B  # the same numbers in A and B?
+
+Each run goes through the command line (``python -m zrp_ga.app``, as ``zrp-ga``), except
+``api``, which goes through ``zrp_ga.calibrate``. Kinds: simulated (GA with and without the
+pseudo-inverse step, LM, CMA-ES), measured (the UR10 laser-tracker data), pose selection, and a
+GA run stopped by Ctrl-C after generation 23 then resumed (``zrp-ga resume=DIR``). Written per
+run: ``convergence.csv`` without its timing columns, and the numbers of ``summary.json`` that
+do not depend on timing or versions. ``--compare`` prints every difference and exits 1 if any.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import pandas as pd
+
+TIMING = ["eval_s", "bookkeeping_s", "refine_s", "wall_s"]
+SMALL = ["problem=multipose", "problem.n_poses=10", "problem.n_validation=10", "seed=4"]
+RUNS = {
+    "paper_ga_pinv": [],
+    "sim_ga_no_step": [*SMALL, "refine=none", "population.generations=15"],
+    "sim_lm": [*SMALL, "algorithm=lm"],
+    "sim_cmaes": [*SMALL, "algorithm=cmaes", "population.generations=15"],
+    "measured_ga": ["problem=ur10_ipa", "population.generations=4"],
+    "measured_lm": ["problem=ur10_ipa", "algorithm=lm"],
+    "selection_ga": ["experiment=pose_selection", "problem.n_candidates=60", "problem.k=8", "problem.n_validation=20",
+                     "population.generations=4"],
+}  # fmt: skip
+RESUMED = [*SMALL, "refine=none", "population.mu=30", "population.lambda_=30", "population.generations=40", "checkpoint_every=7"]
+# A Ctrl-C after generation 23, in the run's own process: the convergence log raises it.
+CUT = """
+import runpy, sys
+from zrp_ga import callbacks
+write = callbacks.ConvergenceLog.on_generation
+def cut(self, algorithm, row):
+    write(self, algorithm, row)
+    if row["gen"] == 23:
+        raise KeyboardInterrupt
+callbacks.ConvergenceLog.on_generation = cut
+sys.argv = ["zrp-ga", *sys.argv[1:]]
+runpy.run_module("zrp_ga.app", run_name="__main__")
+"""
+SUMMARY_KEYS = ["instance", "algorithm", "seed", "final_cost", "optimiser_cost", "returned", "initial_cost",
+                "nominal_cost", "nevals", "stop_reason", "validation_rms_mm", "validation_max_mm", "param_err",
+                "identifiability", "best_genome", "choices"]  # fmt: skip
+
+
+def command(args: list[str], script: str | None = None) -> subprocess.CompletedProcess:
+    head = ["-c", script] if script else ["-m", "zrp_ga.app"]
+    return subprocess.run([sys.executable, *head, *args, "progress=false"], capture_output=True, text=True)
+
+
+def keep(run_dir: Path, out: Path, name: str, stdout: str = "") -> None:
+    curve = pd.read_csv(run_dir / "convergence.csv").drop(columns=TIMING)
+    curve.to_csv(out / f"{name}.csv", index=False, float_format="%r")
+    summary = json.loads((run_dir / "summary.json").read_text())
+    kept = {k: summary.get(k) for k in SUMMARY_KEYS}
+    kept["console"] = [re.sub(r"^\[[^]]*\]", "[time]", line) for line in stdout.splitlines() if not line.startswith("results in")]
+    (out / f"{name}.json").write_text(json.dumps(kept, indent=1, sort_keys=True))
+
+
+def run_all(out: Path, only: list[str] | None) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix="zrp_ga_reference_"))
+    for name, args in RUNS.items():
+        if only and name not in only:
+            continue
+        proc = command([*args, f"hydra.run.dir={work / name}"])
+        if proc.returncode:
+            raise SystemExit(f"{name}: {proc.stderr[-2000:]}")
+        keep(work / name, out, name, proc.stdout)
+        print(name, "done", flush=True)
+    if not only or "resumed" in only:
+        cut = command([*RESUMED, f"hydra.run.dir={work / 'resumed'}"], CUT)
+        assert cut.returncode == 130, cut.stderr
+        proc = command([f"resume={work / 'resumed'}", f"hydra.run.dir={work / 'resume_log'}"])
+        if proc.returncode:
+            raise SystemExit(f"resumed: {proc.stderr[-2000:]}")
+        keep(work / "resumed", out, "resumed", proc.stdout)
+        print("resumed done", flush=True)
+    if not only or "api" in only:
+        import zrp_ga
+
+        zrp_ga.calibrate("puma560", problem={"n_poses": 10, "n_validation": 10}, population={"generations": 8},
+                         refine="none", seed=2, out=work / "api")  # fmt: skip
+        keep(work / "api", out, "api")
+        print("api done", flush=True)
+
+
+def compare(a: Path, b: Path) -> int:
+    bad = 0
+    for f in sorted({p.name for p in a.iterdir()} | {p.name for p in b.iterdir()}):
+        x, y = a / f, b / f
+        if not (x.exists() and y.exists()):
+            print(f"{f}: only in {'A' if x.exists() else 'B'}")
+            bad += 1
+        elif x.read_text() != y.read_text():
+            print(f"{f}: differs")
+            subprocess.run(["diff", str(x), str(y)])
+            bad += 1
+    print("identical" if not bad else f"{bad} file(s) differ")
+    return 1 if bad else 0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", type=Path, nargs="?")
+    parser.add_argument("--only", nargs="*")
+    parser.add_argument("--compare", nargs=2, type=Path)
+    args = parser.parse_args()
+    if args.compare:
+        sys.exit(compare(*args.compare))
+    run_all(args.out, args.only)
+
+
+if __name__ == "__main__":
+    main()

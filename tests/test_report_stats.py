@@ -1,0 +1,143 @@
+"""The report's statistics against known answers: hand computations, published worked examples
+(Demšar 2006's critical difference, Holm's step-down) and scipy on made-up data."""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats as sps
+
+from zrp_ga.report import stats
+from zrp_ga.report.tables import factorial, within_instances
+
+
+def test_friedman_with_seeds_as_blocks_known_answer():
+    # Three configurations, six seeds, A < B < C on every seed: rank sums 6, 12, 18, so
+    # chi2 = 12 / (n k (k+1)) sum R^2 - 3 n (k+1) = 12/72 * 504 - 72 = 12 and, with 2 degrees of
+    # freedom, p = exp(-12 / 2).
+    seeds = range(6)
+    base = pd.Series([10.0, 0.1, 5.0, 100.0, 1.0, 50.0], index=seeds)  # a seed effect far larger than the configurations'
+    groups = {"A": base + 1, "B": base + 2, "C": base + 3}
+    t = stats.compare_design(groups)
+    omni = t[t["a"] == "all"].iloc[0]
+    assert omni["test"] == "Friedman" and omni["design"] == stats.PAIRED
+    assert omni["statistic"] == pytest.approx(12.0) and omni["p"] == pytest.approx(math.exp(-6.0))
+    # the same runs as independent samples: Kruskal-Wallis sees the seeds' spread and nothing else
+    assert sps.kruskal(*groups.values()).pvalue > 0.5
+    # pairwise: Wilcoxon signed-rank, six positive differences out of six: exact p = 2 / 2^6, Holm x3
+    pairs = t[t["a"] != "all"].set_index(["a", "b"])
+    assert set(pairs["test"]) == {"Wilcoxon signed-rank"}
+    assert pairs.loc[("A", "B"), "p"] == pytest.approx(2 / 64)
+    assert pairs.loc[("A", "B"), "p_holm"] == pytest.approx(3 * 2 / 64)
+    assert pairs.loc[("A", "C"), "effect"] == 1.0  # A ends lower on every seed
+
+
+def test_paired_tests_equal_scipy_on_random_data():
+    rng = np.random.default_rng(3)
+    data = {c: pd.Series(rng.normal(loc, 1.0, 12).round(1), index=range(12)) for c, loc in (("a", 0.0), ("b", 0.4), ("c", 1.0), ("d", 1.1))}
+    t = stats.compare_design(data, ci=False)
+    omni = t[t["a"] == "all"].iloc[0]
+    ref = sps.friedmanchisquare(*(v.to_numpy() for v in data.values()))
+    assert omni["statistic"] == pytest.approx(ref.statistic) and omni["p"] == pytest.approx(ref.pvalue)
+    pairs = t[t["a"] != "all"]
+    expected = [sps.wilcoxon(data[a].to_numpy(), data[b].to_numpy()).pvalue for a, b in zip(pairs["a"], pairs["b"])]
+    assert pairs["p"].to_numpy() == pytest.approx(expected)
+    m = len(expected)  # Holm by hand: the i-th smallest times (m - i), made monotone, capped at 1
+    order = np.argsort(expected)
+    adjusted = np.minimum(1.0, np.maximum.accumulate([(m - i) * expected[j] for i, j in enumerate(order)]))
+    assert pairs["p_holm"].to_numpy()[order] == pytest.approx(adjusted)
+
+
+def test_unshared_seeds_fall_back_to_kruskal_and_mann_whitney():
+    rng = np.random.default_rng(4)
+    a = pd.Series(rng.normal(0, 1, 8), index=range(8))
+    b = pd.Series(rng.normal(1, 1, 8), index=range(8, 16))  # other seeds
+    c = pd.Series(rng.normal(2, 1, 8), index=range(16, 24))
+    t = stats.compare_design({"a": a, "b": b, "c": c}, ci=False)
+    omni = t[t["a"] == "all"].iloc[0]
+    assert omni["test"] == "Kruskal-Wallis" and omni["design"] == stats.INDEPENDENT
+    assert omni["p"] == pytest.approx(sps.kruskal(a, b, c).pvalue)
+    ab = t[(t["a"] == "a") & (t["b"] == "b")].iloc[0]
+    assert ab["p"] == pytest.approx(sps.mannwhitneyu(a, b, alternative="two-sided").pvalue)
+    assert ab["effect"] == pytest.approx(np.mean(a.to_numpy()[:, None] < b.to_numpy()[None, :]))  # no ties: A12 = P(a < b)
+
+
+def test_holm_worked_example():
+    # Holm's procedure on four hypotheses, p = 0.01, 0.04, 0.03, 0.005, alpha = 0.05: the sorted
+    # p-values times 4, 3, 2, 1 are 0.02, 0.03, 0.06, 0.04, made non-decreasing 0.02, 0.03, 0.06,
+    # 0.06: H1 and H4 rejected, H2 and H3 not.
+    adjusted = stats.holm(np.array([0.01, 0.04, 0.03, 0.005]))
+    assert adjusted == pytest.approx([0.03, 0.06, 0.06, 0.02])
+    assert (adjusted < 0.05).tolist() == [True, False, False, True]
+
+
+def test_nemenyi_critical_difference_of_demsars_example():
+    # Demšar (2006), section 3.2.2: four classifiers on 14 data sets, q_0.05 = 2.569, CD = 2.569
+    # sqrt(4 * 5 / (6 * 14)) = 1.25.
+    rng = np.random.default_rng(0)
+    scores = pd.DataFrame(rng.random((14, 4)), columns=list("abcd"))
+    assert stats.friedman(scores)["cd"] == pytest.approx(2.569 * math.sqrt(20 / 84), abs=1e-3)
+    assert round(stats.friedman(scores)["cd"], 2) == 1.25
+
+
+def test_smallest_p_is_what_scipy_gives_at_the_extreme():
+    for n in (3, 5, 8):
+        assert stats.smallest_p(stats.PAIRED, n) == pytest.approx(sps.wilcoxon(np.arange(1.0, n + 1)).pvalue)
+        x, y = np.arange(n, dtype=float), np.arange(n, 2 * n, dtype=float)
+        assert stats.smallest_p(stats.INDEPENDENT, n) == pytest.approx(sps.mannwhitneyu(x, y, method="exact").pvalue)
+
+
+def test_bootstrap_intervals_hold_the_estimate_and_narrow_with_more_data():
+    rng = np.random.default_rng(5)
+    widths = []
+    for n in (10, 80):
+        x, y = rng.normal(0, 1, n), rng.normal(0.5, 1, n)
+        for paired, est in ((False, stats.a12(x, y)), (True, stats.paired_superiority(x, y))):
+            lo, hi = stats.effect_ci(x, y, paired)
+            assert lo <= est <= hi
+            widths.append(hi - lo)
+    assert widths[2] < widths[0] and widths[3] < widths[1]
+    lo, hi = stats.effect_ci(np.arange(5.0), np.arange(10.0, 15.0), paired=False)  # every run of A below every run of B
+    assert (lo, hi) == (1.0, 1.0)
+
+
+def _runs_frame(rows):
+    return pd.DataFrame(rows, columns=["run", "configuration", "instance", "seed", "final_cost", "final_over_ref", "x", "y"])
+
+
+def test_within_instances_pairs_by_seed_and_corrects_over_instances():
+    rows = []
+    for inst, effect in (("I1", 1.0), ("I2", 0.0)):  # on I2 the two configurations end alike
+        for seed in range(6):
+            base = 10.0**seed  # seeds differ by decades: only a paired test sees the configurations' difference
+            for c, shift in (("good", 0.0), ("bad", effect)):
+                rows.append((f"{inst}{c}{seed}", c, inst, seed, base + shift, base + shift, c, ""))
+    w = within_instances(_runs_frame(rows))
+    i1 = w[(w["instance"] == "I1") & (w["a"] != "all")].iloc[0]
+    assert i1["test"] == "Wilcoxon signed-rank" and i1["p"] == pytest.approx(2 / 64)  # six of six: exact
+    assert sps.mannwhitneyu(*[[r[4] for r in rows if r[2] == "I1" and r[1] == c] for c in ("good", "bad")]).pvalue > 0.5
+    assert w[w["instance"] == "I1"]["best"].iloc[0] == "good"
+    i2 = w[(w["instance"] == "I2") & (w["a"] != "all")].iloc[0]
+    assert i2["p"] == 1.0 and i2["effect"] == 0.5  # every seed a tie
+
+
+def test_factorial_main_effects_paired_by_the_other_settings():
+    rows = []
+    rng = np.random.default_rng(1)
+    for inst in ("I1", "I2"):
+        for seed in range(5):
+            for y in ("y0", "y1"):
+                base = float(rng.uniform(1, 100))  # every (seed, y) block its own scale
+                for x in ("x0", "x1"):
+                    v = base * (1.5 if x == "x1" else 1.0)
+                    rows.append((f"{inst}{seed}{x}{y}", f"{x} {y}", inst, seed, v, v, x, y))
+    tests, medians = factorial(_runs_frame(rows), ["x", "y"])
+    x = tests[(tests["setting"] == "x") & (tests["a"] != "all")].set_index("instance")
+    assert set(x["design"]) == {stats.PAIRED}
+    assert x.loc["I1", "n_a"] == 10  # blocks: 5 seeds x 2 values of y
+    assert x.loc["I1", "p"] == pytest.approx(2 / 2**10)  # x1 worse in all ten blocks
+    assert x.loc["all", "n_a"] == 20 and x.loc["all", "effect"] == 1.0  # across instances: the instance joins the block
+    assert set(medians[medians["setting"] == "x"]["instance"]) == {"I1", "I2", "all"}
+    y = tests[(tests["setting"] == "y") & (tests["a"] != "all")].set_index("instance")
+    assert (y["p"] > 0.05).all()  # y's blocks are the (seed, x) pairs: its values differ at random

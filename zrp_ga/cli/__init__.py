@@ -1,0 +1,129 @@
+"""``zrp-ga``: the command line, the only package that talks to Hydra. ``zrp-ga`` alone runs the
+paper's case study; any setting can be overridden (``zrp-ga problem=multipose seed=3``), swept
+(``zrp-ga -m crossover=glob(*)``) or inspected with Hydra's own flags (``--cfg job``,
+``--info defaults``, ``--help``).
+
+:func:`main` is the ``@hydra.main`` entry point: it reads what Hydra knows about the run (its
+directory, the command line's overrides, the groups' options, the sweep job) and hands the
+config to the run layer (:mod:`zrp_ga.run`), which checks, runs and records it. :func:`cli` is
+the console script, which turns every error in the user's input into one line and exit code 2.
+Heavy modules are imported where they are used, so that ``--help`` starts fast.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from pathlib import Path
+from typing import Any
+
+import hydra
+from omegaconf import DictConfig
+
+from zrp_ga import config
+
+config.register()
+
+
+@hydra.main(version_base="1.3", config_path="pkg://zrp_ga.conf", config_name="config")
+def main(cfg: DictConfig) -> float:
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    from zrp_ga import summary
+    from zrp_ga.run import build, execute
+    from zrp_ga.run.directory import Sweep
+
+    hc = HydraConfig.get()
+    out = Path(hc.runtime.output_dir)
+    choices = dict(hc.runtime.choices)
+    overrides = list(hc.overrides.task)
+    if hc.mode == RunMode.MULTIRUN:
+        sweep = Sweep(Path(hc.sweep.dir), int(hc.job.num), tuple(overrides), str(hc.sweep.subdir))
+        objective = execute.sweep_job(cfg, out, sweep, choices)
+        summary.console(out, (hc.job.num, " ".join(overrides)))
+    else:
+        p = build.prepare(cfg, out, overrides, choices)
+        objective = execute.objective(execute.run_prepared(p, bool(cfg.progress)))
+        summary.console(p.out)
+    return objective
+
+
+def cli() -> None:
+    """The console script: :func:`main`, with the errors in the user's input (a bad key or value,
+    a missing or malformed file) printed as one line, exit code 2, and Ctrl-C (or SIGTERM, as a
+    cluster's job limit sends it) as a hint to resume.
+
+    Hydra prints composition errors over several lines and exits with 1; with
+    ``HYDRA_FULL_ERROR`` set it raises them instead, which is how they are caught here (set it
+    yourself to see Hydra's full traceback)."""
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    from zrp_ga.cli.callbacks import Refused
+
+    full = os.environ.get("HYDRA_FULL_ERROR") == "1"
+    os.environ["HYDRA_FULL_ERROR"] = "1"
+    signal.signal(signal.SIGTERM, _stop)  # a job limit or shutdown: stop as at Ctrl-C, checkpoints saved
+    _register_launcher()
+    try:
+        main()
+    except (HydraException, OmegaConfBaseException, ValueError, OSError, Refused) as exc:
+        if full:
+            raise
+        print(f"zrp-ga: error: {one_line(getattr(exc, 'error', exc))}", file=sys.stderr)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        print(f"\nzrp-ga: interrupted; {_continue_with()}", file=sys.stderr)
+        sys.exit(130)
+
+
+def _continue_with() -> str:
+    """How to continue the interrupted run or sweep, from what Hydra knows about it."""
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    hc = HydraConfig.get() if HydraConfig.initialized() else None
+    if hc is not None and hc.mode == RunMode.MULTIRUN:
+        sweep = hc.sweep.dir
+        return (f"the finished jobs are kept in {sweep} and the interrupted ones continue from their checkpoints: "
+                f"continue with the same command and hydra.sweep.dir={sweep}")  # fmt: skip
+    where: Any = "the run directory"
+    if hc is not None:
+        resumed = [o.split("=", 1)[1] for o in hc.overrides.task if o.startswith("resume=")]
+        where = Path(resumed[-1]).expanduser() if resumed else hc.runtime.output_dir
+    return (f"the checkpoint and convergence.csv in {where} are complete up to the last finished generation: "
+            f"continue with  zrp-ga resume={where}")  # fmt: skip
+
+
+def _register_launcher() -> None:
+    """zrp_ga's launcher, registered through Hydra's public ``Plugins.register`` as well: Hydra
+    finds plugins by listing the modules of the ``hydra_plugins`` namespace package, which an
+    editable install (``pip install -e``, whose import hook cannot be listed) hides from it."""
+    from hydra.core.plugins import Plugins
+
+    from hydra_plugins.zrp_ga_launcher.launcher import ZrpGaLauncher
+
+    Plugins.instance().register(ZrpGaLauncher)
+
+
+def _stop(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
+def one_line(exc: BaseException) -> str:
+    """An error on one line: what is wrong and the key (or the options) it concerns."""
+    for e in (exc.__cause__, exc):
+        lines = [line.strip() for line in str(e or "").splitlines() if line.strip()]
+        key = next((line.split(":", 1)[1].strip() for line in lines if line.startswith("full_key:")), None)
+        if key:
+            return f"{lines[0]} (key: {key})"
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()] or [type(exc).__name__]
+    heads = [k for k, line in enumerate(lines) if line.startswith("Available options in")]
+    if heads:
+        options = [line for line in lines[heads[0] + 1 :] if not line.startswith(("Config search path", "provider="))]
+        return f"{lines[0]}; {lines[heads[0]].rstrip(':').lower()}: {', '.join(options)}"
+    if isinstance(exc, OSError) and exc.filename:
+        return f"{exc.filename}: {exc.strerror}"
+    return lines[0]

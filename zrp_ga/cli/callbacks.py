@@ -1,0 +1,63 @@
+"""Hydra callbacks of ``zrp-ga``: the checks before a single run, and the sweep manifest's ends.
+
+:class:`Prepare` checks a single run's config and builds its objects (robot, problem,
+optimiser) before Hydra creates the run's directory, so that bad input stops with one line and
+leaves nothing behind (the problem instance it builds is kept for the run,
+:mod:`zrp_ga.run.shared`). :class:`Manifest` prepares the sweep directory and writes the
+manifest's table (each job records its own states, :func:`zrp_ga.run.execute.sweep_job`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from hydra.core.hydra_config import HydraConfig
+from hydra.experimental.callback import Callback
+from hydra.types import RunMode
+from omegaconf import DictConfig
+
+from zrp_ga.run import directory
+
+
+class Refused(BaseException):
+    """A run refused before it started; ``error`` says why. A BaseException because Hydra turns
+    a callback's ordinary exceptions into warnings and goes on; this one passes through to the
+    console script (:func:`zrp_ga.cli.cli`), like ``KeyboardInterrupt``."""
+
+    def __init__(self, error: Exception):
+        super().__init__(str(error))
+        self.error = error
+
+
+class Prepare(Callback):
+    """Checks and builds a single run before Hydra creates its directory (see the module docstring)."""
+
+    def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        from zrp_ga.run import build
+
+        try:
+            build.prepare(config, Path(config.hydra.run.dir), list(config.hydra.overrides.task))
+        except (ValueError, OSError) as exc:
+            raise Refused(exc) from None
+
+
+def _ours(hydra: DictConfig) -> bool:
+    """zrp_ga's launcher writes the manifest's table itself (a worker process runs many jobs)."""
+    return str(hydra.launcher.get("_target_", "")).startswith("hydra_plugins.zrp_ga_launcher.")
+
+
+class Manifest(Callback):
+    """The sweep directory made and repaired before its jobs, the manifest's table after each
+    job (Hydra skips ``on_multirun_end`` when a job failed) and at the end."""
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        directory.repair(Path(config.hydra.sweep.dir))
+
+    def on_job_end(self, config: DictConfig, job_return: Any, **kwargs: Any) -> None:
+        hc = HydraConfig.get()
+        if hc.mode == RunMode.MULTIRUN and not _ours(hc):
+            directory.write_table(hc.sweep.dir)
+
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        directory.write_table(config.hydra.sweep.dir)

@@ -1,0 +1,61 @@
+"""Small file helpers every layer may use: YAML text with libyaml's emitter, JSON written
+atomically with numpy values and NaN as null, CSV with floats written exactly. They know nothing
+of robots or runs (:mod:`zrp_ga.records` writes a run's files with them).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from collections.abc import Iterable
+from pathlib import Path
+
+import numpy as np
+
+
+def yaml_text(data, **options) -> str:
+    """``yaml.safe_dump(data, **options)`` with libyaml's emitter when PyYAML has it (the same
+    text, several times faster: a sweep job writes a dozen YAML documents)."""
+    import yaml
+
+    return yaml.dump(data, Dumper=getattr(yaml, "CSafeDumper", yaml.SafeDumper), **options)
+
+
+def _plain(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer, np.bool_)):
+        return o.item()
+    return str(o)
+
+
+def _finite_or_none(o):
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    if isinstance(o, dict):
+        return {k: _finite_or_none(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite_or_none(v) for v in o]
+    return o
+
+
+def write_json(path: str | Path, data: dict) -> None:
+    """``data`` as JSON (numpy values as numbers, NaN and inf as null), written atomically."""
+    text = json.dumps(_finite_or_none(json.loads(json.dumps(data, default=_plain))), indent=2)
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text + "\n")
+    os.replace(tmp, path)
+
+
+def write_csv(path: str | Path, rows: Iterable[dict], columns: list[str] | None = None) -> None:
+    """Rows of a table as CSV (floats written exactly, as ``repr`` does)."""
+    rows = list(rows)
+    columns = columns or (list(rows[0]) if rows else [])
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=columns)
+        w.writeheader()
+        for row in rows:
+            w.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})

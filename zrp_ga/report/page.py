@@ -1,0 +1,245 @@
+"""The report as one page: ``index.html``, a single self-contained file (the figures inline as
+SVG, the style inline, no script, no font or image to fetch: it opens from ``file://`` with no
+server and no network) holding the study's design, its conclusions in sentences, every figure
+with its caption, the tables, and the versions and command that made it."""
+
+from __future__ import annotations
+
+import datetime
+import html
+import math
+import platform
+import re
+from importlib import metadata
+
+import numpy as np
+import pandas as pd
+
+from zrp_ga.report import conclusions
+from zrp_ga.report.common import ALPHA
+
+CSS = """
+body{font:15px/1.5 system-ui,-apple-system,"Segoe UI",Roboto,"DejaVu Sans",sans-serif;color:#1b1b1b;margin:0;background:#fafafa}
+main{max-width:1100px;margin:0 auto;padding:1.5em 2em 4em;background:#fff}
+h1{font-size:1.6em;margin:.2em 0 .1em}h2{font-size:1.25em;margin-top:1.8em;border-bottom:1px solid #ddd;padding-bottom:.2em}
+h3{font-size:1.05em;margin:1.2em 0 .3em}
+.lede{color:#444;margin-top:0}
+nav{font-size:.9em;margin:.6em 0 1em}nav a{margin-right:1em}
+figure{margin:1.2em 0 2em;padding:0}figure svg{max-width:100%;height:auto;display:block}
+figcaption{font-size:.92em;color:#333;max-width:52em;margin-top:.4em}figcaption b{color:#000}
+table{border-collapse:collapse;font-size:.85em;margin:.5em 0 1em}
+th,td{border-bottom:1px solid #e3e3e3;padding:.25em .6em;text-align:left;vertical-align:top}
+th{background:#f3f3f3;position:sticky;top:0}td.n{text-align:right;font-variant-numeric:tabular-nums}
+.wide{overflow-x:auto;max-width:100%}
+details{margin:.4em 0 1em}summary{cursor:pointer;color:#0b57d0}
+ul.concl li{margin:.35em 0}
+.sig{color:#0a6b2f;font-weight:600}.ns{color:#8a5300;font-weight:600}
+code,pre{font:.85em/1.4 ui-monospace,"DejaVu Sans Mono",monospace;background:#f4f4f4;padding:.1em .3em}
+pre{padding:.6em;white-space:pre-wrap}
+"""
+
+
+def _fmt(v) -> str:
+    if isinstance(v, (bool, np.bool_)):
+        return "yes" if v else "no"
+    if isinstance(v, (int, np.integer)):
+        return f"{int(v):,}" if abs(int(v)) >= 10_000 else str(int(v))
+    if isinstance(v, (float, np.floating)):
+        if math.isnan(v):
+            return ""
+        if math.isinf(v):
+            return "never" if v > 0 else "-inf"
+        return f"{v:.4g}"
+    return str(v)
+
+
+def table(df: pd.DataFrame, caption: str | None = None, max_rows: int | None = None, names: dict | None = None) -> str:
+    """``df`` as an HTML table (numbers right-aligned, 4 significant digits; inf: never); more
+    than ``max_rows`` rows fold into a details element."""
+    names = names or {}
+    head = "".join(f"<th>{html.escape(str(names.get(c, c)))}</th>" for c in df.columns)
+    numeric = [pd.api.types.is_numeric_dtype(df[c]) and not pd.api.types.is_bool_dtype(df[c]) for c in df.columns]
+    rows = []
+    for row in df.itertuples(index=False):
+        cells = "".join(f"<td{' class=n' if n else ''}>{html.escape(_fmt(v))}</td>" for v, n in zip(row, numeric))
+        rows.append(f"<tr>{cells}</tr>")
+    body = f'<div class="wide"><table><thead><tr>{head}</tr></thead><tbody>{"".join(rows)}</tbody></table></div>'
+    cap = f"<p>{html.escape(caption)}</p>" if caption else ""
+    if max_rows is not None and len(df) > max_rows:
+        return f"{cap}<details><summary>{len(df)} rows: show</summary>{body}</details>"
+    return cap + body
+
+
+def _versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for name in ("zrp_ga", "numpy", "scipy", "pandas", "matplotlib"):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "?"
+    return out
+
+
+def _run_versions(runs_summaries: list[dict]) -> pd.DataFrame:
+    seen: dict[tuple, int] = {}
+    for s in runs_summaries:
+        v = s.get("versions") if isinstance(s.get("versions"), dict) else {}
+        key = tuple(sorted((str(k), str(x)) for k, x in v.items()))
+        seen[key] = seen.get(key, 0) + 1
+    rows = [dict(runs=n, **dict(k)) for k, n in seen.items() if k]
+    return pd.DataFrame(rows)
+
+
+def _mark(sentence: str) -> str:
+    """A sentence as HTML, its verdicts marked."""
+    text = html.escape(sentence)
+    text = re.sub(r"\b(no significant difference|not significantly|do not differ significantly|makes no significant difference)\b",
+                  r'<span class="ns">\1</span>', text)  # fmt: skip
+    return re.sub(r"\b(the configurations differ|the ranks differ|matters|significantly lower)\b", r'<span class="sig">\1</span>', text)
+
+
+def _svg(svg: str, name: str) -> str:
+    """An SVG of matplotlib's, ready to sit inline: its ids prefixed with the figure's name (two
+    figures never share an id), drawn 1.8 times its size in points (a 3.5 in figure 450 px wide,
+    its 8 pt text at about 19 px) but never wider than the page."""
+    m = re.search(r'<svg[^>]*\bwidth="([0-9.]+)pt"', svg)
+    if m:
+        svg = re.sub(r'(<svg[^>]*?)\s(width|height)="[0-9.]+pt"', r"\1", svg, count=1)
+        svg = re.sub(r'(<svg[^>]*?)\s(width|height)="[0-9.]+pt"', r"\1", svg, count=1)
+        svg = svg.replace("<svg ", f'<svg style="width:min(100%,{float(m.group(1)) * 1.8:.0f}px)" ', 1)
+    svg = re.sub(r'\bid="([^"]+)"', lambda m: f'id="{name}-{m.group(1)}"', svg)
+    svg = re.sub(r'url\(#([^)]+)\)', lambda m: f"url(#{name}-{m.group(1)})", svg)
+    svg = re.sub(r'href="#([^"]+)"', lambda m: f'href="#{name}-{m.group(1)}"', svg)
+    return svg.replace("<svg ", f'<svg role="img" aria-label="{html.escape(name)}" ', 1)
+
+
+def design(t: dict, runs) -> str:
+    """The study's design: instances, configurations, seeds, budgets, runs found and left out."""
+    floors, r = t["floors"], t["runs"]
+    dims = {x.instance: len(x.summary.get("best_genome") or {}) for x in runs}
+    inst = floors[["instance", "runs", "nominal_cost", "floor", "floor_source", "round_off", "reference"]].copy()
+    inst.insert(2, "genes", inst["instance"].map(dims))
+    inst.insert(3, "seeds", inst["instance"].map(r.groupby("instance")["seed"].nunique()))
+    conf = r.groupby("configuration", sort=False).agg(runs=("run", "size"), instances=("instance", "nunique"),
+                                                       seeds=("seed", "nunique"), evaluations_min=("nevals", "min"),
+                                                       evaluations_max=("nevals", "max")).reset_index()  # fmt: skip
+    conf = conf.set_index("configuration").reindex(t["summary"]["configuration"]).reset_index()
+    seeds = sorted({s for s in r["seed"].dropna().tolist()}, key=lambda s: (str(type(s)), s))
+    seed_text = ", ".join(map(str, seeds)) if len(seeds) <= 20 else f"{len(seeds)} seeds, {seeds[0]} to {seeds[-1]}"
+    budgets = sorted(set(r["nevals"]))
+    budget_text = ", ".join(f"{b:,}" for b in budgets) if len(budgets) <= 6 else f"{budgets[0]:,} to {budgets[-1]:,}"
+    left = t["left_out"]
+    parts = [
+        f"<p>{len(r)} runs found: {conf.shape[0]} configurations on {len(floors)} instance(s), seeds {html.escape(seed_text)}; "
+        f"evaluations per run: {budget_text}. Settings that tell the configurations apart: "
+        f"{html.escape(', '.join(t['keys']) or 'none')}.</p>",
+        "<h3>Instances</h3>",
+        table(inst, names={"nominal_cost": "nominal cost", "floor": "floor f*", "floor_source": "f* from", "round_off": "round-off",
+                           "reference": "f_ref"}),
+        "<p>f* is Levenberg-Marquardt's cost on the instance where the runs carry it (else the lowest final cost); where it is "
+        "below 1e-9 of the nominal cost it is round-off and f_ref = 1e-9 x the nominal cost, else f_ref = f*.</p>",
+        "<h3>Configurations</h3>", table(conf, max_rows=60),
+        "<h3>Runs left out</h3>",
+        table(left, max_rows=20) if len(left) else "<p>None: every run found finished and its files read whole.</p>",
+    ]
+    for note in t.get("notes", []):
+        parts.append(f"<p>Note: {html.escape(note)}</p>")
+    return "\n".join(parts)
+
+
+def tables(t: dict) -> str:
+    rule = t["rule"]
+    s = t["summary"]
+    cols = ["configuration", "runs", "instances", "final_over_ref_median", "final_cost_median", "final_cost_q1", "final_cost_q3",
+            "val_rms_mm_median", *[f"success_{n}" for n in rule.names()], *[f"ert_{n}" for n in rule.names()]]  # fmt: skip
+    cols = [c for c in cols if c in s and not (c.startswith("val_") and s[c].isna().all())]
+    names = {"final_over_ref_median": "final / f_ref, median", "final_cost_median": "final cost, median", "final_cost_q1": "Q1",
+             "final_cost_q3": "Q3", "val_rms_mm_median": "validation RMS mm, median",
+             **{f"success_{n}": f"hit {n}" for n in rule.names()}, **{f"ert_{n}": f"ERT {n}" for n in rule.names()}}  # fmt: skip
+    parts = ["<h3>Per configuration</h3>",
+             table(s[cols], "Pooled over instances and runs, best first. hit c: share of runs reaching c x f_ref; ERT c: expected "
+                   "evaluations to reach it (all evaluations spent over the successes; never: no run did).", max_rows=60, names=names)]  # fmt: skip
+    w = t["within"]
+    if len(w):
+        omni = w[w["a"] == "all"][["instance", "best", "design", "test", "statistic", "p", "p_holm", "n_a"]]
+        if len(omni):
+            parts += ["<h3>Within each instance</h3>",
+                      table(omni, "The omnibus test per instance on the final cost (Friedman when the configurations share seeds, "
+                            "Kruskal-Wallis otherwise), Holm-corrected over the instances; n: blocks or runs.",
+                            names={"p_holm": "p (Holm)", "n_a": "n"})]  # fmt: skip
+        best_pairs = w[(w["a"] != "all") & ((w["a"] == w["best"]) | (w["b"] == w["best"]))]
+        parts.append(table(best_pairs[["instance", "test", "a", "b", "p", "p_holm", "effect", "effect_lo", "effect_hi"]],
+                           f"The best configuration of each instance against every other: pairwise tests, Holm-corrected over all "
+                           f"pairs of the instance; effect: P(a ends lower than b), with its 95% bootstrap interval. "
+                           f"Significant at {ALPHA:g}: p (Holm) below it.", max_rows=25,
+                           names={"p_holm": "p (Holm)", "effect_lo": "CI low", "effect_hi": "CI high"}))  # fmt: skip
+    f, med = t["factors"], t["factor_medians"]
+    if len(f):
+        wide = med.pivot_table(index=["setting", "value"], columns="instance", values="median_final_over_ref", sort=False).reset_index()
+        parts += ["<h3>Each setting over the others</h3>",
+                  table(wide, "Median final cost / f_ref of each value of each setting, per instance and over all (pooling the other "
+                        "settings).", max_rows=40),
+                  table(f[["setting", "instance", "best", "design", "test", "a", "b", "p", "p_holm", "effect", "effect_lo", "effect_hi"]],
+                        "The tests: paired by the other settings and the seed when every value ran on the same such blocks; per "
+                        "setting, omnibus p-values Holm-corrected over the instances, pairwise ones over the pairs.", max_rows=30,
+                        names={"p_holm": "p (Holm)", "effect_lo": "CI low", "effect_hi": "CI high"})]  # fmt: skip
+    ert = t["ert"][t["ert"]["instance"] == "all"].pivot(index="configuration", columns="level", values="ert")
+    ert = ert.reindex(index=[c for c in s["configuration"] if c in ert.index], columns=rule.names()).reset_index()
+    parts += ["<h3>Expected running time</h3>", table(ert, "ERT in evaluations per target level, pooled over instances.", max_rows=30)]
+    fb = t["fixed_budget_all"].pivot(index="configuration", columns="budget", values="median_cost_over_ref")
+    fb = fb.reindex([c for c in s["configuration"] if c in fb.index])
+    fb.columns = [f"{b:,} evaluations" for b in fb.columns]
+    parts += ["<h3>Fixed budgets</h3>", table(fb.reset_index(), "Median over instances of the median over runs of the best cost "
+                                                                "within the budget / f_ref.", max_rows=30)]  # fmt: skip
+    fr = t["friedman"]
+    if fr is not None:
+        ranks = fr["mean_ranks"].rename("mean rank").reset_index()
+        parts += ["<h3>Ranks across instances</h3>", table(ranks, f"{fr['test']} over {fr['instances']} instances: "
+                                                           f"statistic {fr['statistic']:.3g}, p = {fr['p']:.3g}; Nemenyi CD {fr['cd']:.2f}.",
+                                                           max_rows=30)]  # fmt: skip
+    return "\n".join(parts)
+
+
+def write(path, t: dict, figs: list[dict], runs, command: str, paths: list[str]) -> None:
+    """Write the page to ``path``."""
+    r = t["runs"]
+    title = f"{r['configuration'].nunique()} configurations on {t['floors']['instance'].nunique()} instance(s), {len(r)} runs"
+    said = conclusions.sentences(t)
+    concl = []
+    for heading, lines in said.items():
+        if lines:
+            concl.append(f"<h3>{html.escape(heading)}</h3><ul class=concl>" + "".join(f"<li>{_mark(s)}</li>" for s in lines) + "</ul>")
+    if t.get("cd_note"):
+        concl.append(f"<p>{html.escape(t['cd_note'])}.</p>")
+    fig_html = []
+    for n, fig in enumerate(figs, start=1):
+        fig_html.append(f'<figure id="{fig["name"]}">{_svg(fig["svg"], fig["name"])}<figcaption><b>Figure {n}. '
+                        f'{html.escape(fig["title"])}.</b> {html.escape(fig["caption"])}</figcaption></figure>')  # fmt: skip
+    versions = _versions()
+    run_versions = _run_versions([x.summary for x in runs])
+    made = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
+    body = f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">
+<title>zrp-ga report: {html.escape(title)}</title><style>{CSS}</style></head>
+<body><main>
+<h1>zrp-ga report</h1>
+<p class="lede">{html.escape(title)}. Made {made} from {html.escape(", ".join(paths))}.</p>
+<nav><a href="#conclusions">Conclusions</a><a href="#design">Design</a><a href="#figures">Figures</a><a href="#tables">Tables</a><a href="#provenance">How it was made</a></nav>
+<h2 id="conclusions">Conclusions</h2>
+<p>From the statistics below, at a significance level of {ALPHA:g}; an effect P(A ends lower than B) is the chance that A does
+better: 0.5 is no effect, 1 always. Lower cost is better.</p>
+{"".join(concl) or "<p>One configuration: nothing to compare.</p>"}
+<h2 id="design">Design</h2>
+{design(t, runs)}
+<h2 id="figures">Figures</h2>
+{"".join(fig_html) or "<p>No figures (--formats none).</p>"}
+<h2 id="tables">Tables</h2>
+<p>Every table is also in this folder as CSV (and Markdown).</p>
+{tables(t)}
+<h2 id="provenance">How it was made</h2>
+<pre>{html.escape(command)}</pre>
+<p>Report made with {html.escape(", ".join(f"{k} {v}" for k, v in versions.items()))}. The runs were made with:</p>
+{table(run_versions) if len(run_versions) else "<p>(their summary.json files name no versions)</p>"}
+</main></body></html>
+"""
+    path.write_text(body, encoding="utf-8")

@@ -1,0 +1,132 @@
+"""A run checked and built from its config, before any work and before its directory exists.
+
+:func:`prepare` is the one check every entry point passes (``zrp-ga``, :func:`zrp_ga.calibrate`,
+the experiments, the launcher's workers): the config's values, the run directory (writable,
+holding no other run), ``resume`` (a checkpoint, no other settings), what the problem kind
+allows (``objective=over_floor`` needs a floor). Every error is a
+:class:`~zrp_ga.config.ConfigError` (or an OSError) naming what is wrong in one line.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+from zrp_ga import config
+from zrp_ga.config import ConfigError
+from zrp_ga.run import directory
+from zrp_ga.run.shared import CACHE, Cache
+from zrp_ga.summary import SelfJudging
+
+# Command-line settings that a resumed run accepts besides resume (they change no result).
+RESUME_KEEPS = ("resume=", "progress=", "hydra.")
+
+
+@dataclasses.dataclass
+class Prepared:
+    """A checked config and what it builds."""
+
+    cfg: DictConfig  # the run's config, without Hydra's node
+    task: Any  # zrp_ga.problems.Task
+    algorithm: Any  # zrp_ga.algorithms.Algorithm
+    state: dict | None  # a checkpoint's state when resuming
+    out: Path | None  # the run directory (None: no files)
+    instance: str  # the problem instance's key (zrp_ga.run.shared)
+    choices: dict[str, Any] = dataclasses.field(default_factory=dict)  # the config's group options, for summary.json
+
+
+def task_config(cfg: DictConfig) -> DictConfig:
+    """``cfg`` without Hydra's ``hydra`` node."""
+    return OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]) if "hydra" in cfg else cfg
+
+
+def prepare(cfg: DictConfig, out: Path | None, overrides: Sequence[str] = (), choices: dict | None = None,
+            cache: Cache = CACHE, task: Any = None) -> Prepared:  # fmt: skip
+    """Check ``cfg`` and build its objects, before ``out`` is created (None: no run directory).
+    With ``resume``, the checkpoint's run instead, in its own directory; ``overrides``: the
+    command line's settings, of which a resumed run accepts none but ``progress``. ``choices``:
+    the config groups' options (Hydra's), recorded in ``summary.json``. ``task``: the problem
+    instance, when it was built from data in memory (:func:`zrp_ga.calibrate`) rather than
+    from the config's files (then with a ``cache`` of its own: the key does not describe it)."""
+    cfg = task_config(cfg)
+    state = None
+    if cfg.get("resume"):
+        out, state, cfg = _resume(cfg, overrides)
+        choices = state.pop("choices", None) or {}
+    elif out is not None:
+        check_writable(out)
+        if directory.holds_run(out):
+            raise ConfigError(f"output directory {out} already holds a run; choose another hydra.run.dir, "
+                              f"or continue it with resume={out}")  # fmt: skip
+    return build(cfg, out, state, choices or {}, cache, task)
+
+
+def build(cfg: DictConfig, out: Path | None, state: dict | None, choices: dict, cache: Cache = CACHE,
+          task: Any = None) -> Prepared:  # fmt: skip
+    """The robot, problem and optimiser of the checked task config ``cfg``; the problem
+    instance ``task`` if given, else from ``cache`` when it was built before."""
+    from threadpoolctl import threadpool_limits
+
+    if cfg.checkpoint_every < 0:
+        raise ConfigError(f"checkpoint_every: must be >= 0, got {cfg.checkpoint_every}")
+    with threadpool_limits(limits=1, user_api="blas"):  # the problem's SVDs: see zrp_ga.run.execute
+        key = instance_key(cfg)
+        if task is None:
+            task = cache.instance(key, lambda: _instance(cfg))
+        algorithm = config.instantiate(cfg.algorithm, "algorithm")
+    if state is not None and not algorithm.checkpointable:
+        raise ConfigError(f"resume: {type(algorithm).__name__} runs keep no checkpoints")
+    if cfg.objective is config.Objective.over_floor and isinstance(task, SelfJudging):
+        raise ConfigError("objective: over_floor divides by a calibration's floor; this problem kind has none (use final_cost)")
+    return Prepared(cfg, task, algorithm, state, out, key, dict(choices))
+
+
+def instance_key(cfg: DictConfig) -> str:
+    """The problem instance's key: the resolved robot and problem settings and the seed, as JSON."""
+    parts = {k: OmegaConf.to_container(cfg[k], resolve=True, enum_to_str=True) for k in ("robot", "problem")}
+    return json.dumps({**parts, "seed": int(cfg.seed)}, sort_keys=True)
+
+
+def _instance(cfg: DictConfig) -> Any:
+    robot = config.instantiate(cfg.robot, "robot")
+    return config.instantiate(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
+
+
+def check_writable(out: Path) -> None:
+    """The run directory ``out`` can be created and written: no file in the way, and the first
+    existing folder on the way to it is writable."""
+    for folder in (out, *out.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                raise ConfigError(f"hydra.run.dir: cannot create {out}: {folder} is a file, not a directory")
+            if not os.access(folder, os.W_OK | os.X_OK):
+                raise ConfigError(f"hydra.run.dir: cannot write into {folder} (permission denied)")
+            return
+
+
+def _resume(cfg: DictConfig, overrides: Sequence[str]) -> tuple[Path, dict, DictConfig]:
+    """The run directory, checkpoint state and config of ``resume=DIR``; the other settings of
+    the command line are refused (the run continues with its own)."""
+    from zrp_ga import checkpoint
+
+    out = Path(cfg.resume).expanduser()
+    if not out.is_dir():
+        raise ConfigError(f"resume: {out} is not a run directory")
+    others = [o for o in overrides if not o.lstrip("+~").startswith(RESUME_KEEPS)]
+    if others:
+        raise ConfigError(f"resume: a run continues with its own config; drop {' '.join(others)} "
+                          "(or start a new run with them)")  # fmt: skip
+    state = checkpoint.load(out / directory.CHECKPOINT)
+    return out, state, typed(state.pop("config"))
+
+
+def typed(stored: dict) -> DictConfig:
+    """A config read back from a file (plain values: Enums as their strings) with the schema's
+    types again, so that a resumed run sees the same config as the run it continues."""
+    return OmegaConf.merge(OmegaConf.structured(config.Config), stored)

@@ -1,0 +1,197 @@
+"""The run directory and the sweep directory: the one module that knows their files.
+
+A run directory holds ``convergence.csv`` (written as the run goes), ``checkpoint.npz``,
+``status.json`` (``running``, then ``done``, ``failed`` or ``interrupted``), and at the end
+``summary.json``, ``best_params.csv``, ``initial_population.csv`` and the calibrated arm's
+files. A sweep directory holds one run directory per job, the manifest and, under ``.zrp_ga``,
+what its jobs share (the identifiability and floor of each problem instance, computed once).
+
+The manifest: every job of a sweep appends its state to ``manifest.jsonl`` when it starts
+(``running``) and when it ends (``done``; ``failed`` with the error; ``interrupted`` at
+Ctrl-C), one JSON line each, so that a sweep still running, or killed, can be read at any time;
+the last line of a job is its state. A job whose directory already holds a finished run (a
+sweep started again) is recorded ``done`` without passing through ``running``.
+``manifest.csv`` holds one row per job, rewritten whole (a temporary file, then a rename).
+
+Nothing a kill can do loses a recorded state: lines are short and appended with one ``write``
+each (jobs of a parallel launcher do not interleave them, and a killed process writes a line
+whole or not at all), and a sweep started again first ends a line that a crash of the machine
+left unfinished (:func:`repair`), so that its own lines stay whole; :func:`read_manifest` skips
+such a fragment.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import datetime
+import hashlib
+import json
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+CONVERGENCE = "convergence.csv"
+SUMMARY = "summary.json"
+STATUS = "status.json"
+CHECKPOINT = "checkpoint.npz"
+BEST_PARAMS = "best_params.csv"
+INITIAL_POPULATION = "initial_population.csv"
+RUN_FILES = (CONVERGENCE, SUMMARY)  # a directory holding either holds a run
+MANIFEST = "manifest.jsonl"
+TABLE = "manifest.csv"
+COLUMNS = ["job", "overrides", "dir", "status", "error", "time"]
+SHARED = ".zrp_ga"  # what the jobs of a sweep share, in the sweep directory
+
+
+# --- a run --------------------------------------------------------------------------------------------
+def holds_run(out: Path) -> bool:
+    """Whether ``out`` already holds a run's files."""
+    return any((out / f).exists() for f in RUN_FILES)
+
+
+def status(out: Path) -> str | None:
+    """The ``status`` in ``out/status.json``; None when there is none (or it cannot be read)."""
+    try:
+        return json.loads((out / STATUS).read_text()).get("status")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def write_status(out: Path, state: str, error: str | None = None) -> None:
+    from zrp_ga import records
+
+    records.write_json(out / STATUS, {"status": state} if error is None else {"status": state, "error": error})
+
+
+def read_summary(out: Path) -> dict:
+    return json.loads((out / SUMMARY).read_text())
+
+
+# --- a sweep ------------------------------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class Sweep:
+    """A job of a sweep: the sweep's directory, the job's number, its overrides (command-line
+    lines) and its directory below the sweep's."""
+
+    dir: Path
+    job: int
+    overrides: tuple[str, ...] = ()
+    subdir: str = ""
+
+
+def _append(path: Path, record: dict) -> None:
+    line = json.dumps(record) + "\n"
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    try:
+        os.write(fd, line.encode())
+    finally:
+        os.close(fd)
+
+
+def record(sweep: Sweep, state: str, error: str | None = None) -> None:
+    """Append the job's state to its sweep's manifest."""
+    sweep.dir.mkdir(parents=True, exist_ok=True)
+    _append(sweep.dir / MANIFEST, {
+        "job": int(sweep.job),
+        "overrides": " ".join(sweep.overrides),
+        "dir": str(sweep.subdir),
+        "status": state,
+        "error": error,
+        "time": datetime.datetime.now().isoformat(timespec="seconds"),
+    })  # fmt: skip
+
+
+def _records(sweep: Path) -> list[dict]:
+    """The manifest's records, skipping a line a crash left unfinished."""
+    out = []
+    for line in (Path(sweep) / MANIFEST).read_text().splitlines():
+        try:
+            entry = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(entry, dict) and "job" in entry:
+            out.append(entry)
+    return out
+
+
+def job_states(sweep: str | Path) -> list[dict]:
+    """Each job's last record, by job number."""
+    last = {int(r["job"]): r for r in _records(Path(sweep))}
+    return [{k: last[job].get(k) for k in COLUMNS} for job in sorted(last)]
+
+
+def read_manifest(sweep: str | Path):
+    """One row per job with its last state (a pandas DataFrame): job, overrides, dir, status, error, time."""
+    import pandas as pd
+
+    return pd.DataFrame(job_states(sweep), columns=COLUMNS)
+
+
+def write_table(sweep: str | Path) -> None:
+    """``manifest.csv`` from ``manifest.jsonl``, replaced whole (nothing without a manifest)."""
+    sweep = Path(sweep)
+    if not (sweep / MANIFEST).exists():
+        return
+    tmp = sweep / f".manifest.{os.getpid()}.csv"
+    with open(tmp, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=COLUMNS)
+        writer.writeheader()
+        writer.writerows(job_states(sweep))
+    os.replace(tmp, sweep / TABLE)
+
+
+def repair(sweep: str | Path) -> None:
+    """Before a sweep (started again) writes: end a line left unfinished by a crash, so that the
+    next one stays whole, and remove temporary tables of killed processes."""
+    sweep = Path(sweep)
+    sweep.mkdir(parents=True, exist_ok=True)
+    path = sweep / MANIFEST
+    if path.exists() and path.stat().st_size:
+        with open(path, "rb") as f:
+            f.seek(-1, os.SEEK_END)
+            unfinished = f.read(1) != b"\n"
+        if unfinished:
+            fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+            try:
+                os.write(fd, b"\n")
+            finally:
+                os.close(fd)
+    for tmp in sweep.glob(".manifest.*.csv"):
+        tmp.unlink(missing_ok=True)
+
+
+def _hash(key: str, n: int) -> str:
+    return hashlib.sha1(key.encode()).hexdigest()[:n]
+
+
+def shared(sweep: Path | None, key: str, compute: Callable[[], dict[str, Any]], what: str) -> dict[str, Any]:
+    """``compute()``, kept in the sweep directory as ``what`` under ``key``'s hash, so that the
+    jobs of a sweep compute it once (outside a sweep: computed)."""
+    if sweep is None:
+        return compute()
+    path = sweep / SHARED / f"{what}-{_hash(key, 16)}.json"
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        pass
+    d = compute()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(d))  # floats as repr: read back exactly (inf as Infinity)
+    os.replace(tmp, path)
+    return d
+
+
+def first_to_ask(sweep: Path | None, what: str) -> bool:
+    """True outside a sweep, and for the first job of a sweep that asks about ``what``."""
+    if sweep is None:
+        return True
+    marks = sweep / SHARED
+    marks.mkdir(parents=True, exist_ok=True)
+    try:
+        os.close(os.open(marks / f"announced-{_hash(what, 12)}", os.O_CREAT | os.O_EXCL))
+    except FileExistsError:
+        return False
+    return True

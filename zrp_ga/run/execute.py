@@ -1,0 +1,189 @@
+"""A prepared run executed and recorded: seeded, optimised with the callbacks, summarised, its
+files written into its directory with ``status.json`` saying where it is. A job of a sweep
+(:func:`sweep_job`) also continues whatever a killed run of the same sweep left in its
+directory, and records its state in the sweep's manifest.
+
+Nothing here knows Hydra: the command line (``zrp_ga.cli``), :func:`zrp_ga.calibrate`, the
+experiments and the launcher's workers all run through :func:`run` or :func:`sweep_job`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import random
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+from zrp_ga.config import ConfigError
+from zrp_ga.run import directory
+from zrp_ga.run.build import Prepared, build, prepare, task_config
+from zrp_ga.run.directory import Sweep
+from zrp_ga.run.shared import CACHE, Cache
+
+log = logging.getLogger("zrp_ga")
+
+
+def run(cfg: DictConfig, out: str | Path, progress: bool | None = None, overrides: Sequence[str] = (),
+        choices: dict | None = None) -> float:  # fmt: skip
+    """Check and run one calibration as configured, write its files into ``out`` (or, resuming,
+    the run's own directory) and return the objective (``objective``: the final cost, or the
+    final cost over the instance's floor). ``progress``: show the progress line (default:
+    ``cfg.progress``); ``overrides``, ``choices``: see :func:`zrp_ga.run.build.prepare`."""
+    p = prepare(cfg, Path(out), overrides, choices)
+    return objective(run_prepared(p, p.cfg.progress if progress is None else progress))
+
+
+def objective(ran: tuple[Any, dict]) -> float:
+    """The objective of what :func:`run_prepared` returned."""
+    return float(ran[1]["objective"])
+
+
+def run_prepared(p: Prepared, progress: bool, sweep: Sweep | None = None, cache: Cache = CACHE) -> tuple[Any, dict]:
+    """Run ``p`` in ``p.out`` with ``status.json`` telling where it is: running, then done,
+    failed or interrupted; the result and the summary (:func:`execute`)."""
+    p.out.mkdir(parents=True, exist_ok=True)
+    directory.write_status(p.out, "running")
+    try:
+        ran = execute(p, p.out, progress, sweep, cache)
+    except BaseException as exc:  # Ctrl-C or a crash: say so where the report will look
+        directory.write_status(p.out, "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed", repr(exc))
+        raise
+    directory.write_status(p.out, "done")
+    return ran
+
+
+def execute(p: Prepared, out: Path | None, progress: bool, sweep: Sweep | None = None,
+            cache: Cache = CACHE) -> tuple[Any, dict]:  # fmt: skip
+    """Seed, optimise with the callbacks, summarise; with ``out``, write the run's files there
+    (a convergence log and checkpoints as it goes, the rest at the end). Returns the result and
+    the summary."""
+    import numpy as np
+    from threadpoolctl import threadpool_limits
+
+    from zrp_ga import callbacks, summary
+
+    cfg, task = p.cfg, p.task
+    seed = int(cfg.seed)
+    random.seed(seed)  # DEAP's own operators draw from `random`
+    np.random.seed(seed % 2**32)
+    rng = np.random.default_rng([seed, 0])  # the optimiser's stream; problems draw from [seed, 1] and up
+    resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    cbs = [callbacks.Timing(), callbacks.Validation(task.judge)]
+    if out is not None:
+        cbs.append(callbacks.ConvergenceLog(out / directory.CONVERGENCE, None if p.state is None else int(p.state["gen"])))
+        if p.algorithm.checkpointable and cfg.checkpoint_every:
+            cbs.append(callbacks.Checkpoint(out / directory.CHECKPOINT, int(cfg.checkpoint_every), resolved, p.choices))
+    if progress:
+        cbs.append(callbacks.Progress())
+    where = None if sweep is None else sweep.dir
+    with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread: 50x faster on a busy 2-core machine
+        diagnostics = summary.diagnostics(task, p.state is None, p.instance, cache, where)
+        result = p.algorithm.run(task.problem, rng, cbs, p.state)
+    written, x = summary.build(task, result, cfg, resolved, diagnostics, p.algorithm.elapsed(), p.choices)
+    with threadpool_limits(limits=1, user_api="blas"):
+        written["objective"] = summary.objective(cfg, task, written, p.instance, cache, where)
+    if out is not None:
+        summary.write(out, task, result, written, x)
+    for w in written["warnings"]:
+        log.warning(w)
+    return result, written
+
+
+def sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Cache = CACHE) -> float:
+    """Run a job of a sweep in its directory ``out`` and return its objective, recording its
+    state in the sweep's manifest, and continuing whatever a killed run of the same sweep left
+    there: a finished run is kept as it is, a run with a checkpoint continues from it (to the
+    same files an uninterrupted run writes), a partial run without one starts again. A run of
+    another config in ``out`` is refused."""
+    try:
+        value = _sweep_job(task_config(cfg), out, sweep, choices, cache)
+    except KeyboardInterrupt:
+        directory.record(sweep, "interrupted", "KeyboardInterrupt: continue by running the sweep again")
+        raise
+    except Exception as exc:
+        directory.record(sweep, "failed", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
+        raise
+    directory.record(sweep, "done")
+    return value
+
+
+def _sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Cache) -> float:
+    from zrp_ga import checkpoint
+
+    if directory.status(out) == "done" and (out / directory.SUMMARY).exists():
+        written = directory.read_summary(out)
+        _same_run(cfg, written.get("config"), out)
+        log.info("%s: finished before; kept", out)
+        value = written.get("objective", written["final_cost"])
+        return float("nan") if value is None else float(value)
+    directory.record(sweep, "running")
+    if cfg.get("resume"):
+        raise ConfigError("resume: a sweep continues when it is run again into the same hydra.sweep.dir")
+    state = None
+    if (out / directory.CHECKPOINT).exists():
+        try:
+            state = checkpoint.load(out / directory.CHECKPOINT)
+        except ValueError as exc:  # a checkpoint is written atomically: this is a damaged disk or a foreign file
+            log.warning("%s; the run starts again", exc)
+        else:
+            state.pop("choices", None)
+            _same_run(cfg, state.pop("config"), out)
+            log.info("%s: continues from its checkpoint after generation %d", out, int(state["gen"]))
+    return objective(run_prepared(build(cfg, out, state, choices, cache), False, sweep, cache))
+
+
+def _same_run(cfg: DictConfig, stored: dict | None, out: Path) -> None:
+    """Refuse to continue the run in ``out`` when its config (``stored``, from its summary or
+    checkpoint) is not ``cfg`` (the progress line and resume setting aside)."""
+
+    def plain(o: Any) -> Any:  # as JSON holds it: non-finite floats as null
+        if isinstance(o, dict):
+            return {str(k): plain(v) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return [plain(v) for v in o]
+        return None if isinstance(o, float) and not math.isfinite(o) else o
+
+    mine, theirs = (plain({k: v for k, v in c.items() if k not in ("progress", "resume")})
+                    for c in (OmegaConf.to_container(cfg, resolve=True, enum_to_str=True), stored or {}))  # fmt: skip
+    if mine != theirs:
+        raise ConfigError(f"{out} holds a run of another config ({_difference(mine, theirs)} differs); "
+                          "run this sweep into another hydra.sweep.dir")  # fmt: skip
+
+
+def _difference(a: Any, b: Any) -> str:
+    """A dotted key at which the nested dicts ``a`` and ``b`` differ, the shortest (the same
+    setting can appear deeper through an interpolation: ``algorithm.population``)."""
+
+    def leaves(a: Any, b: Any, key: str) -> list[str]:
+        if isinstance(a, dict) and isinstance(b, dict):
+            return [k for name in [*a, *(n for n in b if n not in a)] if a.get(name) != b.get(name)
+                    for k in leaves(a.get(name), b.get(name), f"{key}.{name}" if key else name)]  # fmt: skip
+        return [key or "the config"]
+
+    return min(leaves(a, b, ""), key=lambda k: k.count("."))
+
+
+def warm_up(cfg: DictConfig, cache: Cache = CACHE) -> None:
+    """Load what the runs of a sweep need (modules, compiled code, the base config's problem
+    instance) by building the sweep's base config and running one generation of it, writing
+    nothing. zrp_ga's launcher calls it in each worker while Hydra still checks the sweep's jobs;
+    whatever fails here fails again, with its message, in the job itself."""
+    import numpy as np
+    from threadpoolctl import threadpool_limits
+
+    from zrp_ga import callbacks, checkpoint, records, summary  # noqa: F401 (imported for the runs)
+
+    try:
+        p = build(task_config(cfg), None, None, {}, cache)
+        with threadpool_limits(limits=1, user_api="blas"):
+            p.algorithm.setup(p.task.problem, np.random.default_rng(0))
+            p.algorithm.initialize()
+            if p.algorithm.has_next():
+                p.algorithm.step()
+            p.task.judge(p.algorithm.current()[0])
+    except Exception as exc:
+        log.debug("warm-up: %s", exc)
