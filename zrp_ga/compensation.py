@@ -559,6 +559,21 @@ def compensate(
     first target not reached, its line and why) or ``"keep"`` (such rows are kept, empty and
     named in ``status``). ``out``: a directory to write ``joints.csv``, ``targets.csv`` and
     ``compensation.json`` into.
+
+    A PUMA 560 whose second joint sits 1 mm off along x: the program as written misses by 1 mm,
+    the corrected joints (a tenth of a degree or so on joints 2 to 6: the wrist keeps the
+    orientation) do not.
+
+    >>> from zrp_ga import robots
+    >>> nominal = robots.get("puma560")
+    >>> shift = np.zeros((7, 3))
+    >>> shift[1, 0] = 0.001  # m
+    >>> arm = nominal.replace(b0=nominal.b0 + shift)
+    >>> c = compensate(arm, [[0.1, -0.5, 0.3, 0.2, 0.6, -0.1]], nominal=nominal, kind="joints")
+    >>> round(float(c.uncompensated_mm[0]), 9), bool(c.residual_mm[0] < 1e-9)
+    (1.0, True)
+    >>> np.round(np.degrees(c.q[0] - [0.1, -0.5, 0.3, 0.2, 0.6, -0.1]), 3) + 0.0  # deg
+    array([ 0.   , -0.033,  0.154,  0.035, -0.118, -0.042])
     """
     if unreachable not in ("error", "keep"):
         raise ValueError(f"unreachable: {unreachable!r}, expected 'error' or 'keep'")
