@@ -192,6 +192,8 @@ def test_target_out_of_reach_named_by_line(tmp_path, capsys):
          "prog.csv, line 3, column 'q3': 90 rad is outside joint 3's limits [-2.35619, 2.35619] rad; in degrees?"),
         (["x", "y", "z", "rx", "ry", "rz"], [[0.4, 0.1, 0.9, 0, 0, 0]], [], "columns rx, ry, rz need their orientation convention"),
         (["x", "y", "z"], [[0.4, 0.1, 0.9]], ["--frame", "instrument"], "has no base transform"),
+        (["x", "y", "z", "rx", "rz"], [[0.4, 0.1, 0.9, 0, 0]], ["--orientation-convention", "XYZ"], "prog.csv: missing column 'ry'"),
+        (["x", "y", "z"], [], [], "prog.csv: no program rows"),
     ],
 )  # fmt: skip
 def test_cli_bad_program_one_line_exit_2(tmp_path, capsys, header, rows, extra, message):
@@ -236,6 +238,8 @@ def test_run_directory_compensation_on_the_true_arm(tmp_path):
     truth = cal.task.calibrated_robot(cal.task.truth)
     q = programme(PUMA, np.random.default_rng(11), 6, CASES["puma560"][2])
     c = zrp_ga.compensate(tmp_path / "run", q, kind="joints", out=tmp_path / "comp")
+    with pytest.raises(ValueError, match="a run's URDF carries its base and tool frames"):
+        zrp_ga.compensate(tmp_path / "run" / "calibrated_robot.urdf", q, kind="joints")
     assert c.arms.nominal.name == "puma560"
     from zrp_ga import kinematics
 

@@ -97,6 +97,9 @@ def load_arms(calibration: Any, nominal: ZRPRobot | str | Path | None = None) ->
         if path.is_dir():
             _check_run_dir(path)
             path = path / RUN_MODEL
+        elif run is not None and path.suffix.lower() in (".urdf", ".xml"):
+            raise ValueError(f"{path}: a run's URDF carries its base and tool frames (an instrument's frame); "
+                             f"give the run directory {run} (or its {RUN_MODEL}, the arm in its base frame)")  # fmt: skip
         cal, source = read_robot(path), str(path)
         if run is not None:
             nom, base, tool, notes = _run_info(run)
@@ -216,6 +219,8 @@ def read_program(
     else:
         raw, where, source = _read_csv(Path(program), sep)
     raw.columns = [str(c).strip() for c in raw.columns]
+    if len(raw) == 0:
+        raise ValueError(f"{source}: no program rows")
     joints = _joint_columns(raw, robot, source)
     has_xyz = all(c in raw.columns for c in "xyz")
     if kind == "auto":
@@ -236,6 +241,9 @@ def read_program(
     if kind == "cartesian":
         p = np.column_stack([number(c) for c in "xyz"]) * LENGTH[length_unit]
         if any(c in raw.columns for c in ("rx", "ry", "rz")):
+            absent = [c for c in ("rx", "ry", "rz") if c not in raw.columns]
+            if absent:
+                raise ValueError(f"{source}: missing column {absent[0]!r} (an orientation takes rx, ry and rz)")
             if not orientation_convention:
                 raise ValueError(f"{source}: columns rx, ry, rz need their orientation convention (an Euler sequence such "
                                  "as XYZ intrinsic or xyz extrinsic, or rotvec as UR controllers use)")  # fmt: skip
@@ -303,6 +311,8 @@ def _check_joints(q: Array, robot: ZRPRobot, names, where, source: str, units: d
 
 
 def _array_program(a: Array, robot: ZRPRobot, kind: str, **units) -> Program:
+    if a.size == 0:
+        raise ValueError("program: no program rows")
     if not np.all(np.isfinite(a)):
         raise ValueError(f"program: NaN or inf at index {tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])}")
     where = tuple(f"row {k}" for k in range(len(a)))
@@ -504,15 +514,15 @@ class Compensation:
         """``joints.csv`` (line, status, corrected joint values in the program's columns and units,
         the residuals and correction sizes), ``targets.csv`` (the same with the corrected
         Cartesian targets x, y, z, rx, ry, rz) and ``compensation.json`` (:meth:`summary`) in ``out``."""
-        from zrp_ga import records
+        from zrp_ga import fileio
 
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         joints, targets = self.tables()
         paths = {"joints": out / "joints.csv", "targets": out / "targets.csv", "summary": out / "compensation.json"}
-        records.write_csv(paths["joints"], joints)
-        records.write_csv(paths["targets"], targets)
-        records.write_json(paths["summary"], self.summary())
+        fileio.write_csv(paths["joints"], joints)
+        fileio.write_csv(paths["targets"], targets)
+        fileio.write_json(paths["summary"], self.summary())
         return paths
 
 
@@ -594,6 +604,9 @@ def compensate(
         raise ValueError(f"{pr.source}: {nom.name} has {nom.n} joints and cannot reach arbitrary orientations; "
                          "give positions only (x, y, z) or set position_only")  # fmt: skip
     p, R = _targets(pr, arms, frame, orient)
+    if frame == "instrument":
+        note = "the targets were given in the instrument's frame and mapped through the run's base transform; the outputs are in the base frame"
+        arms = dataclasses.replace(arms, notes=(*arms.notes, note))
     tol = dict(tolerance_m=tolerance_m, tolerance_rad=tolerance_rad)
     M, n = pr.M, nom.n
     q_nom, q_cal = np.full((M, n), np.nan), np.full((M, n), np.nan)
