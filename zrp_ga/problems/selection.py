@@ -7,7 +7,8 @@ indices; its cost is an observability index of the scaled error Jacobian of the 
 parameters (:mod:`zrp_ga.observability`, docs/model.md section 6), computed for a whole
 population from precomputed per-pose Jacobian blocks. The GA finds subsets through the
 problem's sampling and repair (its declared parts, :mod:`zrp_ga.problems.protocol`) and the subset operators
-(:mod:`zrp_ga.operators.subset`); the baselines are :mod:`zrp_ga.algorithms.subsets`.
+(:mod:`zrp_ga.operators.subset`); the baselines are :mod:`zrp_ga.algorithms.random_search` and
+:mod:`zrp_ga.algorithms.exchange`.
 
 What counts is judged at the end, not per generation (the convergence log's validation
 columns stay empty): a calibration (Levenberg-Marquardt) on the chosen poses alone, as
