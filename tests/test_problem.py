@@ -186,3 +186,15 @@ def test_least_squares_and_the_step_need_a_jacobian():
     ga = config.instantiate(config.load([]).algorithm, "algorithm")  # refine=pinv by default
     with pytest.raises(ConfigError, match="refine: the pseudo-inverse step needs a calibration problem"):
         ga.run(Sphere(), np.random.default_rng(0))
+
+
+def test_levenberg_marquardt_reaches_the_linear_least_squares_solution_and_keeps_the_best_seen(rng):
+    from zrp_ga.problems.least_squares import levenberg_marquardt
+
+    prob, _ = _problem(rng, cost="linear", n_poses=12)
+    seen = []
+    fit = levenberg_marquardt(prob, on_evaluation=lambda x, c, k: seen.append((k, float(c[0]))))
+    solution = np.linalg.lstsq(prob.J_nominal, prob.y_nominal, rcond=None)[0]  # residual y - J x: minimised by lstsq
+    assert prob.costs(fit.x)[0] == pytest.approx(prob.costs(solution)[0], rel=1e-9)
+    assert [k for k, _ in seen] == list(range(fit.nevals + 1))  # the start (0), then each residual evaluation
+    assert fit.cost == min(c for _, c in seen) and fit.initial_cost[0] == seen[0][1]

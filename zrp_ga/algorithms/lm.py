@@ -19,9 +19,8 @@ import numpy as np
 
 from zrp_ga.algorithms import Algorithm, Callback, Result
 from zrp_ga.config import ConfigError
+from zrp_ga.problems.least_squares import X_SCALE, levenberg_marquardt  # noqa: F401 (X_SCALE: named here as before)
 from zrp_ga.problems.protocol import LeastSquares
-
-X_SCALE = 1e-3  # m or rad per gene: 1 mm and 1 mrad weigh alike
 
 
 class LM(Algorithm):
@@ -32,9 +31,8 @@ class LM(Algorithm):
         self.max_evals = max_evals
 
     def run(self, problem: LeastSquares, rng: np.random.Generator, callbacks: tuple[Callback, ...] = (), state: dict | None = None) -> Result:
-        """One call of ``least_squares``; the callbacks see every residual evaluation."""
-        from scipy.optimize import least_squares
-
+        """One fit (:func:`zrp_ga.problems.least_squares.levenberg_marquardt`); the callbacks see
+        every residual evaluation."""
         if state is not None:
             raise ConfigError("resume: only GA runs keep checkpoints")
         if not isinstance(problem, LeastSquares):
@@ -44,30 +42,24 @@ class LM(Algorithm):
         rows: list[dict] = []
         for cb in callbacks:
             cb.on_start(self)
-        x0 = np.zeros(problem.lower.size)
-        self.costs = initial = self.toolbox.evaluate(x0[None])
-        self.offer(x0[None], self.costs)
-        self.emit(callbacks, rows)
 
-        def residual(x: np.ndarray) -> np.ndarray:
-            r = problem.residual(x)
-            self.costs = self.toolbox.evaluate(x[None])
-            self.gen = self.nevals = self.nevals + 1
-            self.n_nonfinite = int(not np.isfinite(self.costs[0]))
-            self.offer(x[None], self.costs)
+        def evaluated(x: np.ndarray, costs: np.ndarray, k: int) -> None:
+            self.costs = costs
+            if k:
+                self.gen = self.nevals = k
+                self.n_nonfinite = int(not np.isfinite(costs[0]))
+            self.offer(x[None], costs)
             self.emit(callbacks, rows)
-            return r
 
-        method = "lm" if problem.n_rows >= x0.size else "trf"
         try:
-            fit = least_squares(residual, x0, jac=lambda x: -problem.jacobian(x), method=method, max_nfev=self.max_evals,
-                                x_scale=np.full(x0.size, X_SCALE), ftol=1e-15, xtol=1e-15, gtol=1e-15)  # fmt: skip
+            fit = levenberg_marquardt(problem, self.max_evals, self.toolbox.evaluate, evaluated)
         except KeyboardInterrupt:
             for cb in callbacks:
                 cb.on_interrupt(self)
             raise
-        self.stop_reason = f"{method}: {fit.message}"
-        result = Result(self.best_x, self.best_cost, self.nevals, self.stop_reason, x0[None], initial, rows)
+        self.stop_reason = fit.message
+        x0 = np.zeros(problem.lower.size)
+        result = Result(self.best_x, self.best_cost, self.nevals, self.stop_reason, x0[None], fit.initial_cost, rows)
         for cb in callbacks:
             cb.on_end(self, result)
         return result

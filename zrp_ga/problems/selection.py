@@ -7,7 +7,8 @@ indices; its cost is an observability index of the scaled error Jacobian of the 
 parameters (:mod:`zrp_ga.observability`, docs/model.md section 6), computed for a whole
 population from precomputed per-pose Jacobian blocks. The GA finds subsets through the
 problem's sampling and repair (its declared parts, :mod:`zrp_ga.problems.protocol`) and the subset operators
-(:mod:`zrp_ga.operators.subset`); the baselines are :mod:`zrp_ga.algorithms.subsets`.
+(:mod:`zrp_ga.operators.subset`); the baselines are :mod:`zrp_ga.algorithms.random_search` and
+:mod:`zrp_ga.algorithms.exchange`.
 
 What counts is judged at the end, not per generation (the convergence log's validation
 columns stay empty): a calibration (Levenberg-Marquardt) on the chosen poses alone, as
@@ -35,6 +36,7 @@ from zrp_ga.metrics import Judge
 from zrp_ga.operators import subset
 from zrp_ga.problem import CalibrationProblem
 from zrp_ga.problems import Task, half_ranges
+from zrp_ga.problems.least_squares import levenberg_marquardt
 from zrp_ga.problems.measured import MeasuredTask, from_measurements, read_sets
 from zrp_ga.problems.protocol import GeneBlocks, Identifiable, Problem, Repairing, Sampling, SelfJudging
 from zrp_ga.robot import ZRPRobot
@@ -154,19 +156,17 @@ def judge(task: Task) -> Judgement:
     """Calibrate ``task`` with Levenberg-Marquardt from the nominal arm and judge the result."""
     from threadpoolctl import threadpool_limits
 
-    from zrp_ga.algorithms.lm import LM
-
     p = task.problem
     with threadpool_limits(limits=1, user_api="blas"):  # as the app runs its optimisers
-        result = LM().run(p, np.random.default_rng(0))
-    x = error_model.canonical(p.layout, p.nominal, result.x) if p.cost is Cost.nonlinear else result.x
+        fit = levenberg_marquardt(p)  # as zrp-ga algorithm=lm runs it
+    x = error_model.canonical(p.layout, p.nominal, fit.x) if p.cost is Cost.nonlinear else fit.x
     zero = np.zeros_like(x)
     both = np.vstack([zero, x])
     rms, vmax = task.judge.validation_errors(both)
     err = task.judge.param_error(both)
-    fit = metrics.position_errors(p.layout, p.nominal, x, p.data)
+    fit_err = metrics.position_errors(p.layout, p.nominal, x, p.data)
     pair = lambda a: (float(a[0]), float(a[1]))
-    return Judgement(task, x, pair(rms), pair(vmax), pair(err), float(np.sqrt(np.mean(fit**2))), result.nevals)
+    return Judgement(task, x, pair(rms), pair(vmax), pair(err), float(np.sqrt(np.mean(fit_err**2))), fit.nevals)
 
 
 @dataclasses.dataclass
