@@ -40,7 +40,7 @@ long=(-m problem=multipose problem.n_poses=6 problem.n_validation=5 population.g
       seed=0,1,2,3 hydra/launcher=local hydra.launcher.n_jobs=2 hydra.sweep.dir=killed)
 setsid zrp-ga "${long[@]}" > /dev/null 2>&1 &
 pid=$!
-for _ in $(seq 600); do
+for _ in $(seq 1200); do
   [ "$(cat killed/*/convergence.csv 2>/dev/null | wc -l)" -gt 200 ] && break
   sleep 0.1
 done
@@ -55,11 +55,11 @@ done
 zrp-ga problem=multipose problem.n_poses=6 problem.n_validation=5 population.generations=1500 checkpoint_every=5 \
   progress=false hydra.run.dir=cut > /dev/null 2>&1 &
 pid=$!
-for _ in $(seq 600); do
-  [ "$(wc -l < cut/convergence.csv 2>/dev/null || echo 0)" -gt 50 ] && break
+for _ in $(seq 1200); do
+  [ "$(cat cut/convergence.csv 2>/dev/null | wc -l)" -gt 50 ] && break
   sleep 0.1
 done
-kill -INT "$pid"
+kill -TERM "$pid"  # as a cluster's job limit stops it (a background job of a script ignores SIGINT)
 wait "$pid" && fail "the interrupted run did not stop" || true
 grep -q interrupted cut/status.json || fail "the interrupted run's status.json does not say so"
 zrp-ga resume=cut progress=false > out.txt 2> err.txt || fail "resume failed: $(tail -3 err.txt)"

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import functools
 import math
 import typing
 from typing import Any, Optional
@@ -431,6 +432,7 @@ def instantiate(node: DictConfig, key: str, **kwargs: Any) -> Any:
 TRUSTED_TARGETS = ["zrp_ga.*", "deap.*", "hydra_plugins.*"]
 
 
+@functools.cache
 def hydra_14() -> bool:
     """Whether the installed hydra-core is 1.4 or later."""
     from importlib import metadata
