@@ -5,7 +5,7 @@ this script's table (experiments/results/calibration_vs_baselines.md). Run:
 
     python experiments/calibration_vs_baselines.py [--seeds 5] [--paper-seeds 30] [--out DIR]
 
-Runs go through ``zrp_ga.app.run`` with the shipped configs, so each is also one command line:
+Runs go through ``zrp_ga.run.execute.run`` (the run layer ``zrp-ga`` runs through) with the shipped configs, so each is also one command line:
 the overrides are printed beside every row.
 """
 
@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from zrp_ga import app, config
+from zrp_ga import config
+from zrp_ga.run import execute
 
 RESULTS = Path(__file__).parent / "results"
 
@@ -41,7 +42,7 @@ SPEED = MULTI + ["problem.n_poses=50", "population=p200", "refine=none", "popula
 
 
 def run(overrides: list[str], out: Path) -> tuple[dict, pd.DataFrame]:
-    app.run(config.load(overrides + ["progress=false"]), out)
+    execute.run(config.load(overrides + ["progress=false"]), out)
     return json.loads((out / "summary.json").read_text()), pd.read_csv(out / "convergence.csv")
 
 

@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from zrp_ga import app, config
+from zrp_ga import config
+from zrp_ga.run import build
 
 RESULTS = Path(__file__).parent / "results"
 SUITE = ["puma560_1pose", "puma560_6poses", "puma560_30poses", "puma560_200poses", "puma560_30poses_exact",
@@ -133,7 +134,7 @@ def main() -> None:
         methods = {k: v for k, v in methods.items() if k in args.methods}
     rows, raw = [], []
     for name in args.instances:
-        task = app.prepare(config.load([f"instance={name}"]), None).task
+        task = build.prepare(config.load([f"instance={name}"]), None).task
         floor = floor_of(task)
         for method, run in methods.items():
             t0 = time.perf_counter()

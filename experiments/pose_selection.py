@@ -29,8 +29,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from zrp_ga import app, config, report
+from zrp_ga import config, report
 from zrp_ga.operators import subset
+from zrp_ga.run import build, execute
 
 RESULTS = Path(__file__).parent / "results" / "pose_selection"
 ARMS = {"pose_selection": "simulated PUMA 560: 500 candidates, full poses",
@@ -62,7 +63,7 @@ def reference(arm: str, root: Path) -> dict:
     out = root / "reference" / arm
     if not (out / "summary.json").exists():
         over = ["experiment=pose_selection_study", f"problem={arm}", "algorithm=random_search", "problem.reference=true"]
-        app.run(config.load(over), out)
+        execute.run(config.load(over), out)
     s = json.loads((out / "summary.json").read_text())["selection"]
     return {**s["all_candidates"], "candidates": s["candidates"]}
 
@@ -70,7 +71,7 @@ def reference(arm: str, root: Path) -> dict:
 def task_of(arm: str):
     """The selection task of ``arm`` as the sweeps built it (the same instance, any k)."""
     over = ["experiment=pose_selection_study", f"problem={arm}"]
-    return app.prepare(config.load(over), Path("unused")).task
+    return build.prepare(config.load(over), None).task
 
 
 def with_candidates_rms(df: pd.DataFrame, tasks: dict) -> pd.DataFrame:

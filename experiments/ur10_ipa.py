@@ -6,7 +6,7 @@ Runs the generic measured problem on the shipped files (what ``problem=ur10_ipa`
         problem.calibration_file=pkg:ur10_ipa/series_b_joint_configurations.csv
         problem.validation_file=pkg:ur10_ipa/series_c_random_poses.csv [algorithm=lm]
 
-(the GA with the pseudo-inverse step, and Levenberg-Marquardt) through ``zrp_ga.app.run``, with
+(the GA with the pseudo-inverse step, and Levenberg-Marquardt) through ``zrp_ga.run.execute.run``, with
 positions, weighted positions and orientations, and writes results/ur10_ipa.md and the GA's
 per-pose error plot. Run:
 
@@ -24,7 +24,8 @@ import json
 import tempfile
 from pathlib import Path
 
-from zrp_ga import app, config, report
+from zrp_ga import config, report
+from zrp_ga.run import execute
 
 RESULTS = Path(__file__).parent / "results"
 VARIANTS = {"positions": [], "positions, weighted by their standard deviations": ["problem.use_weights=true"],
@@ -50,7 +51,7 @@ def main() -> None:
     summaries = {}
     for name, over in RUNS.items():
         run_dir = root / str(len(summaries))
-        app.run(config.load(over + ["progress=false"]), run_dir)
+        execute.run(config.load(over + ["progress=false"]), run_dir)
         s = summaries[name] = json.loads((run_dir / "summary.json").read_text())
         for part in ("calibration", "validation"):
             e = s["position_error_mm"][part]

@@ -1,6 +1,7 @@
 """Config groups, sweeps and their manifest, checkpoints and resume, one-line config errors."""
 
 import io
+import json
 import os
 import signal
 import subprocess
@@ -137,6 +138,10 @@ def test_killed_process_resumes_to_the_same_csv(tmp_path):
     assert len(pd.read_csv(csv)) < 1501, "the run finished before it could be killed"
     done = _zrp_ga(f"resume={tmp_path / 'cut'}", f"hydra.run.dir={tmp_path / 'resume_log'}", "progress=false")
     assert done.returncode == 0, done.stderr
+    # the resumed run records the options of its own command line (FAST), not the defaults'
+    choices = json.loads((tmp_path / "cut" / "summary.json").read_text())["choices"]
+    assert (choices["problem"], choices["refine"]) == ("multipose", "none")
+    assert "the paper" not in done.stdout
     whole = _zrp_ga(*args, f"hydra.run.dir={tmp_path / 'whole'}")
     assert whole.returncode == 0, whole.stderr
     pd.testing.assert_frame_equal(_csv(tmp_path / "cut"), _csv(tmp_path / "whole"))

@@ -22,3 +22,15 @@ def test_compiled_code_is_never_cached_inside_the_package():
     reverse_segments(np.zeros((1, 4)), np.array([0]), np.array([3]))
     package = ROOT / "zrp_ga"
     assert not [p for p in package.rglob("*") if p.suffix in (".nbi", ".nbc")]
+
+
+def test_hydra_only_through_its_public_interfaces():
+    """No import from hydra._internal, no private field read or written, no method of Hydra's
+    (or OmegaConf's) classes replaced: what broke every command under hydra-core 1.4."""
+    import re
+
+    private = re.compile(r"hydra\._internal|_internal import|\._content\b|\._instances\b|\._return_value\b|_set_parent\("
+                         r"|\b(Hydra|ConfigLoaderImpl|Singleton|JobReturn|Plugins|OmegaConf|DictConfig)\.\w+\s*=[^=]")  # fmt: skip
+    found = [f"{p.relative_to(ROOT)}:{k}: {line.strip()}" for d in ("zrp_ga", "hydra_plugins") for p in (ROOT / d).rglob("*.py")
+             for k, line in enumerate(p.read_text().splitlines(), 1) if private.search(line)]  # fmt: skip
+    assert not found, "\n".join(found)

@@ -58,7 +58,7 @@ def hydra_loader():
     from zrp_ga import config
 
     config.register()
-    with initialize_config_module("zrp_ga.conf", version_base="1.3"):
+    with initialize_config_module("zrp_ga.conf", **config.hydra_options()):
         yield GlobalHydra.instance().hydra.config_loader
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import functools
 import math
 import typing
 from typing import Any, Optional
@@ -415,13 +416,37 @@ def instantiate(node: DictConfig, key: str, **kwargs: Any) -> Any:
     from hydra.errors import InstantiationException
     from hydra.utils import instantiate as hydra_instantiate
 
+    trusted = {"_execution_whitelist_": TRUSTED_TARGETS} if hydra_14() else {}
     try:
-        return hydra_instantiate(node, _partial_=True)(**kwargs)
+        return hydra_instantiate(node, _partial_=True, **trusted)(**kwargs)
     except InstantiationException as exc:
         cause = exc.__cause__
         if isinstance(cause, (ValueError, OSError)):
             raise cause from None
         raise ConfigError(f"{key}: {str(exc).splitlines()[0]}") from None
+
+
+# --- what differs between the Hydra releases zrp_ga supports (hydra-core 1.3.2 - 1.4) -------------
+# The targets zrp_ga's configs name; hydra-core 1.4 asks for them to be declared (its "execution
+# whitelist") and warns about others, which 1.5 will refuse.
+TRUSTED_TARGETS = ["zrp_ga.*", "deap.*", "hydra_plugins.*"]
+
+
+@functools.cache
+def hydra_14() -> bool:
+    """Whether the installed hydra-core is 1.4 or later."""
+    from importlib import metadata
+
+    major, minor = (int("".join(c for c in part if c.isdigit()) or 0) for part in metadata.version("hydra-core").split(".")[:2])
+    return (major, minor) >= (1, 4)
+
+
+def hydra_options() -> dict[str, Any]:
+    """Keyword arguments of ``hydra.main`` and ``initialize_config_module``: Hydra's defaults of
+    the installed release (1.3 and 1.4 give zrp_ga the same config; the output directory never
+    is the working directory, conf/config.yaml sets ``hydra.job.chdir=false``). 1.3 wants
+    ``version_base`` (else the defaults of 1.1), 1.4 warns about it."""
+    return {} if hydra_14() else {"version_base": None}
 
 
 def load(overrides: list[str] | tuple[str, ...] = (), return_hydra_config: bool = False) -> DictConfig:
@@ -430,5 +455,5 @@ def load(overrides: list[str] | tuple[str, ...] = (), return_hydra_config: bool 
     from hydra import compose, initialize_config_module
 
     register()
-    with initialize_config_module("zrp_ga.conf", version_base="1.3"):
+    with initialize_config_module("zrp_ga.conf", **hydra_options()):
         return compose("config", overrides=list(overrides), return_hydra_config=return_hydra_config)

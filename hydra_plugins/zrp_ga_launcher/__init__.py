@@ -2,4 +2,6 @@
 and compile once, job configs composed from a few of Hydra's own; see ``launcher.py``.
 
 Hydra finds it by scanning the ``hydra_plugins`` namespace package, which has no
-``__init__.py`` of its own."""
+``__init__.py`` of its own, and (hydra-core 1.4) by the ``hydra.plugins`` entry point in
+pyproject.toml; ``zrp-ga`` registers it itself where neither finds it (an editable install under
+hydra-core 1.3)."""

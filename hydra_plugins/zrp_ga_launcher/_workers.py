@@ -108,7 +108,7 @@ def _run_job(idx: int, data: bytes, hydra_context: HydraContext, task_function: 
     """One job with Hydra's ``run_job``, as Hydra's basic launcher runs it."""
     config = pickle.loads(data)
     with open_dict(config):
-        config.hydra.job.id = idx
+        config.hydra.job.id = str(idx)  # a string field
         config.hydra.job.num = idx
     return run_job(hydra_context=hydra_context, task_function=task_function, config=config,
                    job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")  # fmt: skip
@@ -339,7 +339,7 @@ def _record_failure(launcher: Any, idx: int, overrides: list[str], error: Except
         return
     config = launcher.hydra_context.config_loader.load_sweep_config(launcher.config, overrides)
     with open_dict(config):
-        config.hydra.job.id, config.hydra.job.num = idx, idx
+        config.hydra.job.id, config.hydra.job.num = str(idx), idx
     hc = config.hydra
     sweep = directory.Sweep(Path(hc.sweep.dir), idx, tuple(hc.overrides.task), str(hc.sweep.subdir))
     directory.record(sweep, "failed", f"{type(error).__name__}: {error}")

@@ -10,11 +10,10 @@ Hydra's basic or joblib launcher. Job configs are composed from a few of Hydra's
 
 This module is imported by Hydra's plugin discovery at every start of every Hydra app, so it
 imports nothing heavy; the work is in ``_workers`` and ``_compose`` (not scanned: names with
-a leading underscore).
+a leading underscore). It uses Hydra's public interfaces only (``Launcher``, ``run_job``, the
+``ConfigLoader`` interface, ``Singleton.get_state``/``set_state``), as hydra-core 1.3 and 1.4 keep them.
 """
 
-# No "from __future__ import annotations": Hydra's plugin scan executes this module before it is
-# in sys.modules, where dataclasses look up string annotations.
 from collections.abc import Sequence
 from typing import Any, Optional
 

@@ -26,7 +26,8 @@ from zrp_ga import config
 config.register()
 
 
-@hydra.main(version_base="1.3", config_path="pkg://zrp_ga.conf", config_name="config")
+@hydra.main(config_path="pkg://zrp_ga.conf", config_name="config", **config.hydra_options(),
+            **({"execution_whitelist": config.TRUSTED_TARGETS} if config.hydra_14() else {}))  # fmt: skip
 def main(cfg: DictConfig) -> float:
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
@@ -98,14 +99,17 @@ def _continue_with() -> str:
 
 
 def _register_launcher() -> None:
-    """zrp_ga's launcher, registered through Hydra's public ``Plugins.register`` as well: Hydra
-    finds plugins by listing the modules of the ``hydra_plugins`` namespace package, which an
-    editable install (``pip install -e``, whose import hook cannot be listed) hides from it."""
+    """zrp_ga's launcher, registered through Hydra's public ``Plugins.register`` when Hydra did
+    not find it: hydra-core 1.3 finds plugins only by listing the modules of the
+    ``hydra_plugins`` namespace package, which an editable install (``pip install -e``, whose
+    import hook cannot be listed) hides from it (1.4 also reads the entry point in pyproject.toml)."""
     from hydra.core.plugins import Plugins
+    from hydra.plugins.launcher import Launcher
 
     from hydra_plugins.zrp_ga_launcher.launcher import ZrpGaLauncher
 
-    Plugins.instance().register(ZrpGaLauncher)
+    if ZrpGaLauncher not in Plugins.instance().discover(Launcher):
+        Plugins.instance().register(ZrpGaLauncher)
 
 
 def _stop(signum: int, frame: Any) -> None:

@@ -13,11 +13,15 @@ A genome whose Jacobian cannot be factorised (NaN genes) is left as it is.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numpy.typing import NDArray
 
 from zrp_ga.operators.base import batched
-from zrp_ga.problems.protocol import LeastSquares
+
+if TYPE_CHECKING:  # a type only: the problems sit above the operators
+    from zrp_ga.problems.protocol import LeastSquares
 
 Array = NDArray[np.float64]
 
