@@ -35,6 +35,7 @@ OPS = "tests/test_operator_distributions.py"
 REG = "tests/test_registration_values.py"
 WARN = "tests/test_warning_paths.py"
 MODEL = ["tests/test_so3.py", "tests/test_kinematics.py"]
+UNITS = ["tests/test_measurement_files.py", "tests/test_measurement_units.py"]
 
 PLANTS: list[dict] = [
     # --- operators: the distributions ---------------------------------------------------------
@@ -121,13 +122,13 @@ PLANTS: list[dict] = [
     # --- units ----------------------------------------------------------------------------------
     dict(name="mm-factor", file="zrp_ga/measurements.py",
          old='LENGTH = {"m": 1.0, "mm": 1e-3}', new='LENGTH = {"m": 1.0, "mm": 1e-2}',
-         tests=["tests/test_measurement_files.py"], what="measurement files: a millimetre read as 1e-2 m"),
+         tests=UNITS, what="measurement files: a millimetre read as 1e-2 m"),
     dict(name="std-not-scaled", file="zrp_ga/measurements.py",
          old="std = np.column_stack([col[c] for c in fmt.std]) * u.length", new="std = np.column_stack([col[c] for c in fmt.std])",
-         tests=["tests/test_measurement_files.py"], what="measurement files: standard deviations left in file units"),
+         tests=UNITS, what="measurement files: standard deviations left in file units"),
     dict(name="prismatic-not-scaled", file="zrp_ga/measurements.py",
          old='col[c] * (u.length if t == "P" else u.joint)', new='col[c] * (1.0 if t == "P" else u.joint)',
-         tests=["tests/test_measurement_files.py"], what="measurement files: prismatic joint values left in file units"),
+         tests=UNITS, what="measurement files: prismatic joint values left in file units"),
     dict(name="robot-file-mm-factor", file="zrp_ga/robot_files.py",
          old='LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}', new='LENGTH_UNITS = {"m": 1.0, "mm": 1e-2}',
          tests=["tests/test_robot_files.py"], what="robot files: a millimetre read as 1e-2 m"),
