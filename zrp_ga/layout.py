@@ -284,7 +284,7 @@ def valid_names(layout: Layout) -> str:
     n = layout.n
     first = 1 if layout.base else 2
     parts = [f"u0_1..u0_{n} (axis directions)", f"b0_{first}..b0_{n + 1} (body vectors{'; b0_1 = base' if layout.base else ''}; b0_{n + 1} = tool)",
-             "axes", "links (b0_2..b0_%d)" % n, "tool"]  # fmt: skip
+             "axes", f"links (b0_2..b0_{n})", "tool"]  # fmt: skip
     parts += ["base"] * layout.base + ["hand (hand orientation)"] * layout.hand
     if layout.tools:
         parts.append(f"tools (tool2..tool{layout.n_tools})")
