@@ -101,7 +101,7 @@ def calibrate(
     from zrp_ga.run.shared import Cache
 
     over = _overrides(algorithm, seed, settings)
-    if data is not None and "problem" not in settings:
+    if data is not None and not isinstance(settings.get("problem"), str):  # problem={...}: the measured problem's keys
         over.insert(0, "problem=measured")
     cfg = config.load(over + ["problem.calibration_file=memory"] if data is not None else over)
     arm = robot if isinstance(robot, ZRPRobot) else robots.load(**_robot_source(robot))

@@ -184,6 +184,8 @@ class ProblemConf:
     name: Optional[str] = None  # the instance's name in every file (null: derived from the config)
     identify_base: bool = False  # add b0_1 to the genome
     identify_hand: bool = False  # add the hand orientation
+    fixed: Optional[list[str]] = None  # parameters held at nominal: u0_i, b0_i, base, tool, hand, tools, axes, links, b0_3x (docs/model.md 3.1)
+    free: Optional[list[str]] = None  # or the only ones calibrated (with fixed: fixed less these)
     axis_error: float = 0.01  # gene ranges: +-axis_error x search_scale on the axes (rad) ...
     body_error: float = 0.0005  # ... +-body_error x search_scale (m) on the body vectors
     search_scale: float = 1.0

@@ -267,21 +267,24 @@ class IdentifiabilityReport:
 def _known_null_directions(robot: ZRPRobot, names: list[str]) -> list[tuple[str, Array]]:
     """Directions (K,) of the genome that the geometry of ``robot`` says measurements may not
     see, with their labels: the slide of the point on axis i along it (a prismatic joint's axis
-    also across it), and the two tilts of an axis through the end point about that point."""
+    also across it), and the two tilts of an axis through the end point about that point. Only
+    directions within the genome's (free) genes ``names``."""
     K = len(names)
     index = {name: k for k, name in enumerate(names)}
+    has = lambda stem: all(f"{stem}{c}" in index for c in "xyz")
+    cols = lambda stem: [index[f"{stem}{c}"] for c in "xyz"]
     candidates: list[tuple[str, Array]] = []
     for i in range(1, robot.n + 1):
-        a, b = f"b0_{i}x", f"b0_{i + 1}x"
-        if a in index and b in index:
+        a, b = f"b0_{i}", f"b0_{i + 1}"
+        if has(a) and has(b):
             v = np.zeros(K)
-            v[index[a] : index[a] + 3] = robot.u0[i - 1]
-            v[index[b] : index[b] + 3] = -robot.u0[i - 1]
+            v[cols(a)] = robot.u0[i - 1]
+            v[cols(b)] = -robot.u0[i - 1]
             candidates.append((f"b0_{i}/b0_{i + 1} slide along u0_{i}", v / np.sqrt(2)))
             if robot.joint_types[i - 1] == "P":
                 for c, e in zip("xyz", np.eye(3)):
                     v = np.zeros(K)
-                    v[index[a] : index[a] + 3], v[index[b] : index[b] + 3] = e, -e
+                    v[cols(a)], v[cols(b)] = e, -e
                     label = f"b0_{i}/b0_{i + 1} shift along {c} (prismatic joint {i}: its axis has no fixed point)"
                     candidates.append((label, v / np.sqrt(2)))
         # Axis i through the end point e: it can tilt about e unseen by position data. Tilting
@@ -289,13 +292,14 @@ def _known_null_directions(robot: ZRPRobot, names: list[str]) -> list[tuple[str,
         c_i = robot.b0[:i].sum(axis=0)
         arm = robot.b0.sum(axis=0) - c_i
         L = arm @ robot.u0[i - 1]
-        if np.linalg.norm(arm - L * robot.u0[i - 1]) < 1e-9 and (a in index or L == 0.0):
+        through = np.linalg.norm(arm - L * robot.u0[i - 1]) < 1e-9
+        if through and has(f"u0_{i}") and has(b) and (has(a) or L == 0.0):
             for t in np.linalg.svd(robot.u0[i - 1][None])[2][1:]:  # two tilts normal to u0_i
                 v = np.zeros(K)
-                v[index[f"u0_{i}x"] : index[f"u0_{i}x"] + 3] = t
-                if a in index:
-                    v[index[a] : index[a] + 3] -= L * t
-                v[index[b] : index[b] + 3] += L * t
+                v[cols(f"u0_{i}")] = t
+                if has(a):
+                    v[cols(a)] -= L * t
+                v[cols(b)] += L * t
                 label = f"u0_{i} tilts about the end point (axis {i} passes through it)"
                 candidates.append((label, v / np.linalg.norm(v)))
     return candidates
@@ -349,29 +353,36 @@ def canonical(layout: Layout, nominal: ZRPRobot, x: ArrayLike) -> Array:
     of the model, the slide of each axis point along its own (normalised) axis and any shift of
     a prismatic joint's point. Every pose and every cost stays the same; body-vector errors
     become comparable between runs (LM, whose damping moves freely along these directions,
-    otherwise reports metres)."""
-    x = np.asarray(x, dtype=float).copy()
-    n = nominal.n
-    u = layout.unpack(nominal, x).U[:, :, 0]
-    start = {i: layout.blocks["b0"].start + 3 * (i - 2) for i in range(2, n + 2)}
-    if layout.base:
-        start[1] = layout.blocks["base"].start
+    otherwise reports metres). With fixed genes only the directions that leave them alone count;
+    ``x`` may also be a full genome (the fixed genes included, a simulation's truth), returned
+    full and fixed with the same directions."""
+    x = np.asarray(x, dtype=float)
+    full = layout.expand(x)
+    n, whole = nominal.n, layout.unmasked
+    u = layout.unpack(nominal, full).U[:, :, 0]
+    blocks = whole.blocks
+    start = {i: blocks["b0"].start + 3 * (i - 2) for i in range(2, n + 2)}
+    if whole.base:
+        start[1] = blocks["base"].start
+    fixed = np.ones(whole.size, dtype=bool)
+    fixed[layout.free] = False
     vectors = []
     for i in range(1, n + 1):
         if i not in start:
             continue
         for d in np.eye(3) if nominal.joint_types[i - 1] == "P" else u[i - 1][None]:
-            v = np.zeros(layout.size)
+            v = np.zeros(whole.size)
             v[start[i] : start[i] + 3] += d
             v[start[i + 1] : start[i + 1] + 3] -= d
             if i == n:  # every tool's end point hangs off axis n's point
-                for t in range(2, layout.n_tools + 1):
-                    v[layout.blocks[f"tool{t}"]] -= d
-            vectors.append(v)
+                for t in range(2, whole.n_tools + 1):
+                    v[blocks[f"tool{t}"]] -= d
+            if not np.any(v[fixed]):
+                vectors.append(v)
     if vectors:
         Q = np.linalg.qr(np.array(vectors).T)[0]
-        x -= Q @ (Q.T @ x)
-    return x
+        full -= Q @ (Q.T @ full)
+    return full if x.shape[-1] == whole.size else full[layout.free]
 
 
 def row_space_projector(J: ArrayLike) -> Array:

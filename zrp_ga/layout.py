@@ -16,6 +16,13 @@ independently of tool 1's. ``known_tools`` are tools without genes (a validation
 other tool point): their end point is the hand's, averaged over the identified tools
 (``b0_{n+1}^(k) - R_h0 o_k``), plus ``R_h0 o`` with the calibrated hand orientation.
 
+Fixed parameters (``fixed``: gene names of the full genome, :func:`mask` reads them from the
+config's names). The genome then holds only the free genes: ``size``, ``names`` and ``blocks``
+cover them, in the full genome's order; :meth:`Layout.expand` scatters a genome into the full
+one with zeros (the nominal values) at the fixed places, and :meth:`Layout.unpack`,
+:meth:`Layout.robot` take either. ``full_names`` and :attr:`Layout.unmasked` are the genome
+without a mask (the Jacobian's columns before they are restricted to the free ones).
+
 The model turns about the normalised axes ``(u0 + du0) / |u0 + du0|``; the unit-length rows
 of the paper (Eq. 19-20) then keep ``|u0 + du0|`` near one (see :mod:`zrp_ga.problem`).
 """
@@ -23,6 +30,9 @@ of the paper (Eq. 19-20) then keep ``|u0 + du0|`` near one (see :mod:`zrp_ga.pro
 from __future__ import annotations
 
 import dataclasses
+import functools
+import re
+from collections.abc import Iterable
 from typing import NamedTuple
 
 import numpy as np
@@ -77,14 +87,16 @@ class ModelArrays(NamedTuple):
 @dataclasses.dataclass(frozen=True)
 class Layout:
     """Which parameter errors a genome holds: K = 6n (+3 with ``base``, +3 with ``hand``, +3 per
-    tool beyond the first). ``tools``: offsets (m) of tools 2..T from tool 1 in the hand frame;
-    ``known_tools``: the same for tools without genes (module docstring)."""
+    tool beyond the first), less the ``fixed`` genes. ``tools``: offsets (m) of tools 2..T from
+    tool 1 in the hand frame; ``known_tools``: the same for tools without genes; ``fixed``: names
+    of genes held at their nominal values (module docstring)."""
 
     n: int
     base: bool = False
     hand: bool = False
     tools: tuple[Vec3, ...] = ()
     known_tools: tuple[Vec3, ...] = ()
+    fixed: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("tools", "known_tools"):
@@ -92,25 +104,68 @@ class Layout:
             if any(len(o) != 3 or not np.all(np.isfinite(o)) for o in value):
                 raise ValueError(f"layout.{name}: expected offsets of 3 finite numbers, got {getattr(self, name)}")
             object.__setattr__(self, name, value)
+        fixed = set(self.fixed)
+        unknown = sorted(fixed - set(self.full_names))
+        if unknown:
+            raise ValueError(f"layout.fixed: {unknown[0]!r} is not a gene of this layout")
+        object.__setattr__(self, "fixed", tuple(k for k in self.full_names if k in fixed))
+        if self.fixed and len(self.fixed) == len(self.full_names):
+            raise ValueError("layout.fixed: every parameter is fixed; nothing is left to calibrate")
 
     @property
     def n_tools(self) -> int:
         """Tools with genes (tool 1 and ``tools``)."""
         return 1 + len(self.tools)
 
-    @property
-    def names(self) -> list[str]:
+    @functools.cached_property
+    def unmasked(self) -> Layout:
+        """This layout with every gene free (itself when nothing is fixed)."""
+        return dataclasses.replace(self, fixed=()) if self.fixed else self
+
+    @functools.cached_property
+    def full_names(self) -> list[str]:
+        """Names of every gene, fixed or free (the unmasked genome's order)."""
         names = parameter_names(self.n, self.base, self.hand)
         return names + [f"b0_{self.n + 1}{c}_tool{k}" for k in range(2, self.n_tools + 1) for c in "xyz"]
 
     @property
-    def size(self) -> int:
+    def full_size(self) -> int:
         return 6 * self.n + 3 * self.base + 3 * self.hand + 3 * len(self.tools)
+
+    @functools.cached_property
+    def free(self) -> NDArray[np.intp]:
+        """Indices of the free genes in the full genome (ascending)."""
+        fixed = set(self.fixed)
+        return np.array([k for k, name in enumerate(self.full_names) if name not in fixed], dtype=np.intp)
+
+    @property
+    def names(self) -> list[str]:
+        """Names of the genome's (free) genes."""
+        full = self.full_names
+        return [full[k] for k in self.free] if self.fixed else list(full)
+
+    @property
+    def size(self) -> int:
+        return self.full_size - len(self.fixed)
 
     @property
     def blocks(self) -> dict[str, slice]:
-        """Gene blocks: ``u0`` (axes), ``b0`` (body vectors 2..n+1), ``base``, ``hand``,
-        ``tool2`` .. ``toolT`` (the last body vectors of the other tools)."""
+        """Gene blocks of the genome: ``u0`` (axes), ``b0`` (body vectors 2..n+1), ``base``,
+        ``hand``, ``tool2`` .. ``toolT`` (the last body vectors of the other tools), each the
+        free genes of that block (a block with none left is left out)."""
+        full = self._full_blocks()
+        if not self.fixed:
+            return full
+        position = np.cumsum(np.isin(np.arange(self.full_size), self.free)) - 1  # free index of each full gene
+        out = {}
+        for name, block in full.items():
+            kept = np.isin(np.arange(block.start, block.stop), self.free)
+            if kept.any():
+                first = int(position[block.start + int(np.argmax(kept))])
+                out[name] = slice(first, first + int(kept.sum()))
+        return out
+
+    def _full_blocks(self) -> dict[str, slice]:
         n = self.n
         out = {"u0": slice(0, 3 * n), "b0": slice(3 * n, 6 * n)}
         k = 6 * n
@@ -121,12 +176,25 @@ class Layout:
                 k += 3
         return out
 
+    def expand(self, X: ArrayLike) -> Array:
+        """Genomes X (..., K) as full genomes (..., full_size), zero (nominal) at the fixed genes;
+        full genomes are returned as they are (a copy)."""
+        X = np.asarray(X, dtype=float)
+        if X.shape[-1] == self.full_size:
+            return X.copy()
+        if X.shape[-1] != self.size:
+            raise ValueError(f"layout: genomes of {X.shape[-1]} genes, expected {self.size} (or {self.full_size} with the fixed ones)")
+        out = np.zeros(X.shape[:-1] + (self.full_size,))
+        out[..., self.free] = X
+        return out
+
     def unpack(self, nominal: ZRPRobot, X: ArrayLike) -> ModelArrays:
-        """Model arrays of genomes X (P, K) or (K,) (then P = 1); NaN where genes break the model."""
+        """Model arrays of genomes X (P, K) or (K,) (then P = 1), or of full genomes (with the fixed
+        genes); NaN where genes break the model."""
         from scipy.spatial.transform import Rotation
 
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        P, n, blocks = X.shape[0], self.n, self.blocks
+        X = np.atleast_2d(self.expand(X))
+        P, n, blocks = X.shape[0], self.n, self._full_blocks()
         D = np.ascontiguousarray(X.T)  # the kernels need C order: their loops vectorise over P
         U = nominal.u0[:, :, None] + D[blocks["u0"]].reshape(n, 3, P)
         length2 = np.einsum("ikp,ikp->ip", U, U)
@@ -140,16 +208,16 @@ class Layout:
             H = (Rotation.from_rotvec(X[:, blocks["hand"]]).as_matrix() @ nominal.R_h0).transpose(1, 2, 0)
         else:
             H = np.broadcast_to(nominal.R_h0[:, :, None], (3, 3, P))
-        return ModelArrays(U, B, np.ascontiguousarray(H), length2, self._ends(nominal, B, H, D))
+        return ModelArrays(U, B, np.ascontiguousarray(H), length2, self._ends(nominal, B, H, D, blocks))
 
-    def _ends(self, nominal: ZRPRobot, B: Array, H: Array, D: Array) -> Array:
+    def _ends(self, nominal: ZRPRobot, B: Array, H: Array, D: Array, blocks: dict[str, slice]) -> Array:
         """The last body vector of every tool (T, 3, P): tool 1, the tools with genes, the known
         tools (module docstring)."""
         if not self.tools and not self.known_tools:
             return B[-1:]
         ends = [B[-1]]
         for t, offset in enumerate(self.tools, start=2):
-            ends.append((nominal.b0[-1] + nominal.R_h0 @ offset)[:, None] + D[self.blocks[f"tool{t}"]])
+            ends.append((nominal.b0[-1] + nominal.R_h0 @ offset)[:, None] + D[blocks[f"tool{t}"]])
         if self.known_tools:
             offsets = np.array(((0.0, 0.0, 0.0),) + self.tools)  # (T, 3), tool 1's is zero
             hand = np.mean([e - np.einsum("ijp,j->ip", H, o) for e, o in zip(ends, offsets)], axis=0)
@@ -159,7 +227,8 @@ class Layout:
     def pack(self, nominal: ZRPRobot, robot: ZRPRobot, ends: ArrayLike | None = None) -> Array:
         """The genome (K,) that turns ``nominal`` into ``robot`` (same joints, tool 1) and whose
         tools 2..T have the last body vectors ``ends`` ((T-1, 3) m; default: the nominal ones);
-        the inverse of :meth:`robot` for unit axes."""
+        the inverse of :meth:`robot` for unit axes. ValueError where ``robot`` differs from
+        ``nominal`` in a fixed gene."""
         from scipy.spatial.transform import Rotation
 
         parts = [(robot.u0 - nominal.u0).ravel(), (robot.b0[1:] - nominal.b0[1:]).ravel()]
@@ -175,10 +244,114 @@ class Layout:
             nominal_ends = nominal.b0[-1] + np.array(self.tools) @ nominal.R_h0.T
             ends = nominal_ends if ends is None else np.asarray(ends, dtype=float).reshape(len(self.tools), 3)
             parts.append((ends - nominal_ends).ravel())
-        return np.concatenate(parts)
+        x = np.concatenate(parts)
+        if not self.fixed:
+            return x
+        moved = [name for name, v in zip(self.full_names, x) if name in set(self.fixed) and abs(v) > 1e-12]
+        if moved:
+            raise ValueError(f"layout: the robots differ in the fixed parameter {moved[0]}")
+        return x[self.free]
 
     def robot(self, nominal: ZRPRobot, x: ArrayLike, name: str | None = None, tool: int = 0) -> ZRPRobot:
-        """The robot of one genome ``x`` (K,) with the end point of tool ``tool`` (0: tool 1;
+        """The robot of one genome ``x`` (K,) (or full genome) with the end point of tool ``tool`` (0: tool 1;
         then the tools with genes, then the known ones), axes normalised."""
         u0, b0, R_h0 = (a[0] for a in self.unpack(nominal, x).for_tool(tool).population_first())
         return nominal.replace(u0=u0, b0=b0, R_h0=R_h0, name=name or nominal.name, normalize=True)
+
+
+def _groups(layout: Layout) -> dict[str, list[str]]:
+    """The names a config may give, each with the genes it stands for (:func:`mask`)."""
+    n, full = layout.n, layout.full_names
+    vec = lambda stem: [f"{stem}{c}" for c in "xyz"]
+    out = {f"u0_{i}": vec(f"u0_{i}") for i in range(1, n + 1)}
+    out.update({f"b0_{i}": vec(f"b0_{i}") for i in range(1 if layout.base else 2, n + 2)})
+    out["axes"] = [k for k in full if k.startswith("u0_")]
+    out["links"] = [f"b0_{i}{c}" for i in range(2, n + 1) for c in "xyz"]
+    out["tool"] = vec(f"b0_{n + 1}")
+    if layout.base:
+        out["base"] = vec("b0_1")
+    if layout.hand:
+        out["hand"] = vec("rh_")
+    if layout.tools:
+        out["tools"] = [k for k in full if "_tool" in k]
+        out.update({f"tool{t}": [f"b0_{n + 1}{c}_tool{t}" for c in "xyz"] for t in range(2, layout.n_tools + 1)})
+    out.update({k: [k] for k in full})  # one component: b0_3x, u0_2z, rh_x
+    return out
+
+
+def valid_names(layout: Layout) -> str:
+    """The names :func:`mask` takes for ``layout``, in one line."""
+    n = layout.n
+    first = 1 if layout.base else 2
+    parts = [f"u0_1..u0_{n} (axis directions)", f"b0_{first}..b0_{n + 1} (body vectors{'; b0_1 = base' if layout.base else ''}; b0_{n + 1} = tool)",
+             "axes", f"links (b0_2..b0_{n})", "tool"]  # fmt: skip
+    parts += ["base"] * layout.base + ["hand (hand orientation)"] * layout.hand
+    if layout.tools:
+        parts.append(f"tools (tool2..tool{layout.n_tools})")
+    parts.append("or one component such as b0_3x")
+    return ", ".join(parts)
+
+
+_WHY = {"base": "the base point is identified only with problem.identify_base=true (measured problems: always)",
+        "hand": "the hand orientation is identified only with problem.identify_hand=true (measured: use_orientation=true)",
+        "b0_1": "the base point is identified only with problem.identify_base=true (measured problems: always)"}  # fmt: skip
+
+
+def mask(layout: Layout, fixed: Iterable[str] | None = None, free: Iterable[str] | None = None, key: str = "problem") -> Layout:
+    """``layout`` with the parameters named in ``fixed`` held at their nominal values, or, with
+    ``free`` alone, every parameter but those; with both, ``fixed`` less ``free`` (fix the links
+    but b0_3: ``fixed=[links], free=[b0_3]``). Names: ``u0_i`` (axis i's direction), ``b0_i``
+    (body vector i; ``b0_1`` the base point, ``b0_{n+1}`` tool 1's last body vector), ``base``,
+    ``tool``, ``hand`` (hand orientation), ``tools`` and ``tool2``.. (the other tools' last body
+    vectors), ``axes`` (every u0), ``links`` (b0_2..b0_n), or one gene (``b0_3x``). An unknown
+    name is a ValueError naming ``key.fixed`` (or ``key.free``) and the valid names in one line."""
+    if fixed is None and free is None:
+        return layout
+    groups = _groups(layout)
+
+    def genes(names: Iterable[str] | None, which: str) -> set[str]:
+        if names is None:
+            return set()
+        if isinstance(names, str):
+            names = [names]
+        out: set[str] = set()
+        for raw in names:
+            name = str(raw).strip()
+            if name not in groups:
+                stem = re.sub(r"[xyz]$", "", name).rstrip("_")
+                why = _WHY.get(name) or _WHY.get(stem)
+                hint = f" ({why})" if why else ""
+                raise ValueError(f"{key}.{which}: {name!r} is not a parameter of this problem{hint}; valid: {valid_names(layout)}")
+            out.update(groups[name])
+        return out
+
+    fixed_genes, free_genes = genes(fixed, "fixed"), genes(free, "free")
+    chosen = fixed_genes - free_genes if fixed is not None else set(layout.full_names) - free_genes
+    if len(chosen) == len(layout.full_names):
+        raise ValueError(f"{key}.{'fixed' if fixed is not None else 'free'}: every parameter would be fixed; nothing is left to calibrate")
+    return dataclasses.replace(layout, fixed=tuple(sorted(chosen | set(layout.fixed))))
+
+
+def fixed_summary(layout: Layout) -> list[str]:
+    """The fixed genes as a config would name them: whole vectors (``u0_1``, ``base``, ``tool``,
+    ``hand``, ``tool2``) where all three are fixed, single genes otherwise."""
+    fixed, n = set(layout.fixed), layout.n
+    names = {"b0_1": "base", f"b0_{n + 1}": "tool", "rh_": "hand"}
+    out = []
+    for name in layout.full_names:
+        if name not in fixed:
+            continue
+        stem = name[:-1] if not name.endswith(tuple(f"_tool{t}" for t in range(2, layout.n_tools + 1))) else None
+        if stem is None:
+            vec_stem, tool = name.split("_tool")
+            trio = [f"{vec_stem[:-1]}{c}_tool{tool}" for c in "xyz"]
+            label = f"tool{tool}"
+        else:
+            trio = [f"{stem}{c}" for c in "xyz"]
+            label = names.get(stem, stem)
+        if all(t in fixed for t in trio):
+            if label not in out:
+                out.append(label)
+        else:
+            out.append(name)
+    return out

@@ -85,10 +85,13 @@ class Judge:
         return np.sqrt(np.mean(err**2, axis=1)), np.max(err, axis=1)
 
     def param_error(self, x: ArrayLike) -> Array:
-        """Distance to the true genome in the identifiable subspace, (P,); NaN if unknown."""
+        """Distance to the true genome in the identifiable subspace, (P,); NaN if unknown. With
+        fixed genes, ``truth`` and ``projector`` are the full genome's (the fixed genes count)."""
         X = np.atleast_2d(np.asarray(x, dtype=float))
         if self.truth is None or self.projector is None:
             return np.full(X.shape[0], np.nan)
+        if X.shape[1] != self.truth.shape[-1]:
+            X = self.layout.expand(X)
         return np.linalg.norm((X - self.truth) @ self.projector, axis=1)
 
     def __call__(self, x: ArrayLike) -> dict[str, float]:

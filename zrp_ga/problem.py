@@ -150,15 +150,18 @@ class CalibrationProblem:
         R, p = self._poses(self.layout.unpack(self.nominal, x))
         dp = data.p - p
         pose = dp if data.position_only else np.hstack([error_model.pose_error(data.R, data.p, R, p)[0], dp])
-        unit = -0.5 * (np.sum((self.nominal.u0 + x[self.layout.blocks["u0"]].reshape(-1, 3)) ** 2, axis=1) - 1.0)
+        du0 = self.layout.expand(x)[: 3 * self.nominal.n].reshape(-1, 3)  # every axis, fixed ones at nominal
+        unit = -0.5 * (np.sum((self.nominal.u0 + du0) ** 2, axis=1) - 1.0)
         return np.concatenate([pose.ravel(), unit]) * self._row_weights
 
     def _jacobian(self, x: Array, exact: bool) -> Array:
         """Stacked, weighted error Jacobian at ``x``. ``exact``: the orientation rows are the
         derivative of this problem's residual ``vee(skew(W))``, ``W = R_meas R^T``, which is
-        ``(tr(W) I - W^T) / 2`` times the paper's J1 rows (equal when W = I)."""
+        ``(tr(W) I - W^T) / 2`` times the paper's J1 rows (equal when W = I)). The columns of
+        the free genes: computed for all genes, then restricted."""
         m = self.layout.unpack(self.nominal, x)
-        data, n, blocks = self.data, self.nominal.n, self.layout.blocks
+        x = self.layout.expand(x)
+        data, n, blocks = self.data, self.nominal.n, self.layout.unmasked.blocks
         raw = self.nominal.u0 + x[blocks["u0"]].reshape(n, 3)
         length = np.linalg.norm(raw, axis=1)
         unit = raw / length[:, None]
@@ -176,17 +179,18 @@ class CalibrationProblem:
         N = (np.eye(3) - unit[:, :, None] * unit[:, None, :]) / length[:, None, None]
         Ju = J[..., : 3 * n].reshape(J.shape[:2] + (n, 3))
         J[..., : 3 * n] = np.einsum("mrik,ikl->mril", Ju, N).reshape(J.shape[:2] + (3 * n,))
-        U = np.zeros((n, self.layout.size))
+        U = np.zeros((n, self.layout.full_size))
         for i in range(n):
             U[i, 3 * i : 3 * i + 3] = raw[i]
-        return np.vstack([J.reshape(-1, J.shape[-1]), U]) * self._row_weights[:, None]
+        J = np.vstack([J.reshape(-1, J.shape[-1]), U]) * self._row_weights[:, None]
+        return J[:, self.layout.free] if self.layout.fixed else J
 
     def _tool_jacobians(self, unit: Array, m, compiled: bool) -> Array:
         """Pose Jacobians (M, 6, K) at the unit axes ``unit`` (n, 3) and one genome's model
         arrays: each tool's poses with its last body vector, whose columns are that tool's genes.
         ``compiled``: the compiled Jacobian (the pseudo-inverse step and LM call it often), else
         the numpy reference (the nominal Jacobian, computed once: bit for bit zrp_ga 0.1's)."""
-        data, layout, n = self.data, self.layout, self.nominal.n
+        data, layout, n = self.data, self.layout.unmasked, self.nominal.n
         if len(self._groups) == 1 and self._groups[0][0] == 0 and not layout.tools:
             return error_model.jacobian_arrays(unit, m.B[:, :, 0], self.nominal.prismatic, data.q, layout.base, layout.hand,
                                                compiled)  # fmt: skip

@@ -41,7 +41,10 @@ def params_by_joint(layout: Layout, x: np.ndarray, truth: np.ndarray | None = No
     """Parameter errors by joint (Table 3 style): ``du0_x..z`` of joint i and ``db0_x..z`` of
     ``b0_{i+1}`` (m); extra rows ``base`` (db0_1), ``hand`` (rotation vector, rad) and ``tool2`` ..
     (the other tools' last body vectors, m); the true
-    errors in ``true_*`` columns when known."""
+    errors in ``true_*`` columns when known. With fixed genes (zero: nominal), a ``fixed`` column
+    names them per row."""
+    x, truth = layout.expand(x), None if truth is None else layout.expand(truth)
+    fixed, layout = set(layout.fixed), layout.unmasked
     n, blocks = layout.n, layout.blocks
     u_cols, b_cols = ["du0_x", "du0_y", "du0_z"], ["db0_x", "db0_y", "db0_z"]
 
@@ -54,6 +57,12 @@ def params_by_joint(layout: Layout, x: np.ndarray, truth: np.ndarray | None = No
         return rows
 
     out = table(np.asarray(x, dtype=float))
+    if fixed:
+        for row in out:
+            j = row["joint"]
+            genes = {"base": ["b0_1{}"], "hand": ["rh_{}"]}.get(j) or (
+                [f"u0_{j}{{}}", f"b0_{int(j) + 1}{{}}"] if j.isdigit() else [f"b0_{n + 1}{{}}_{j}"])  # fmt: skip
+            row["fixed"] = " ".join(g.format(c) for g in genes for c in "xyz" if g.format(c) in fixed)
     if truth is not None:
         for row, true in zip(out, table(np.asarray(truth, dtype=float))):
             row.update({f"true_{k}": v for k, v in true.items() if k != "joint"})

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zrp_ga.config import ProblemConf
-from zrp_ga.layout import Layout
+from zrp_ga.layout import Layout, fixed_summary, mask
 from zrp_ga.metrics import Judge
 from zrp_ga.problem import CalibrationProblem
 from zrp_ga.robot import ZRPRobot
@@ -61,6 +61,16 @@ class Task:
 
     def write(self, out: Path, x: Array) -> None:
         """Files of this kind beyond the common ones."""
+
+
+def masked(c: ProblemConf, layout: Layout, info: dict[str, Any] | None = None) -> Layout:
+    """``layout`` with the parameters ``problem.fixed`` / ``problem.free`` name held at nominal
+    (:func:`zrp_ga.layout.mask`; an unknown name is one line naming the key and the valid
+    names); what is fixed goes into ``info["fixed"]`` (``summary.json``)."""
+    out = mask(layout, c.fixed, c.free, "problem")
+    if info is not None and out.fixed:
+        info["fixed"] = fixed_summary(out)
+    return out
 
 
 def half_ranges(c: ProblemConf, layout: Layout) -> Array:

@@ -38,7 +38,7 @@ from zrp_ga.layout import Layout
 from zrp_ga.measurements import Measurements
 from zrp_ga.metrics import Judge
 from zrp_ga.problem import CalibrationProblem, model_rank
-from zrp_ga.problems import Task, half_ranges
+from zrp_ga.problems import Task, half_ranges, masked
 from zrp_ga.registration import Registration, register
 from zrp_ga.robot import ZRPRobot
 
@@ -172,8 +172,9 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
                    tool_names=names)  # fmt: skip
     warnings = _registration_warnings(robot, reg, calib)
     nominal = reg.apply(robot)
-    layout = Layout(robot.n, base=True, hand=bool(c.use_orientation), tools=tuple(map(tuple, reg.tools[1:] - reg.tool)),
-                    known_tools=tuple(tuple(v - reg.tool) for v in known.values()))  # fmt: skip
+    fixed_info: dict[str, Any] = {}
+    layout = masked(c, Layout(robot.n, base=True, hand=bool(c.use_orientation), tools=tuple(map(tuple, reg.tools[1:] - reg.tool)),
+                              known_tools=tuple(tuple(v - reg.tool) for v in known.values())), fixed_info)  # fmt: skip
     half = gene_half_widths(layout, nominal, calib.q, reg, c) if c.ranges is Ranges.data else half_ranges(c, layout)
     data = calib.for_calibration(c.use_orientation, c.use_weights)
     problem = CalibrationProblem(nominal, data, layout, -half, half, c.cost, c.norm, c.orientation_weight, c.kernel)
@@ -182,7 +183,7 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
     info = {"kind": "measured", "files": {"calibration": calib.source, "validation": val.source if val is not None else None},
             "units": {"length": calib.units[0], "joint_angle": calib.units[1]}, "tools": list(names),
             **({"known_tools": {k: v.tolist() for k, v in known.items()}} if known else {}),
-            "gene_half_widths": dict(zip(layout.names, half.tolist()))}  # fmt: skip
+            **fixed_info, "gene_half_widths": dict(zip(layout.names, half.tolist()))}  # fmt: skip
     sets = {"calibration": calib, **({"validation": val} if val is not None else {})}
     judge = Judge(layout, nominal, validation, registration=c.validation_registration.value)
     for w in warnings:
@@ -244,7 +245,8 @@ def _registration_warnings(robot: ZRPRobot, reg: Registration, calib: Measuremen
 def gene_half_widths(layout: Layout, nominal: ZRPRobot, q: np.ndarray, reg: Registration, c: MeasuredConf) -> np.ndarray:
     """Half widths (K,) of the gene ranges from the registered arm's residuals (module
     docstring): body vectors, base point and tools ``e``, axis i ``e / L_i``, hand the largest
-    orientation residual; times ``search_scale``."""
+    orientation residual; times ``search_scale``. Fixed genes: the free ones' widths."""
+    free, layout = layout.free, layout.unmasked
     e = max(reg.max, 1e-6)
     J = error_model.pose_jacobians(nominal, q)[:, 3:, : 3 * layout.n]  # position rows, axis columns
     tilts = [np.eye(3) - np.outer(u, u) for u in nominal.u0]  # an axis only turns: its tangent directions
@@ -253,4 +255,4 @@ def gene_half_widths(layout: Layout, nominal: ZRPRobot, q: np.ndarray, reg: Regi
     half[layout.blocks["u0"]] = np.repeat(np.minimum(e / np.maximum(lever, MIN_LEVER_M), MAX_AXIS_RAD / c.search_scale), 3)
     if layout.hand:
         half[layout.blocks["hand"]] = min(max(reg.max_angle or 0.0, 1e-6), MAX_AXIS_RAD / c.search_scale)
-    return half * c.search_scale
+    return half[free] * c.search_scale

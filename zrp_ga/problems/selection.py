@@ -35,7 +35,7 @@ from zrp_ga.measurements import Measurements
 from zrp_ga.metrics import Judge
 from zrp_ga.operators import subset
 from zrp_ga.problem import CalibrationProblem
-from zrp_ga.problems import Task, half_ranges
+from zrp_ga.problems import Task, half_ranges, masked
 from zrp_ga.problems.least_squares import levenberg_marquardt
 from zrp_ga.problems.measured import MeasuredTask, from_measurements, read_sets
 from zrp_ga.problems.protocol import GeneBlocks, Identifiable, Problem, Repairing, Sampling, SelfJudging
@@ -299,19 +299,21 @@ def _simulated_task(robot, layout, candidates, validation, truth_x, projector, c
 def simulated(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any]:
     """A true arm around ``robot``, ``n_candidates`` candidate and ``n_validation`` validation
     poses within its limits, measured on it (drawn from ``[problem.seed or seed, 1]`` in that order)."""
-    layout = Layout(robot.n, base=c.identify_base, hand=c.identify_hand)
+    info = {"kind": "pose_selection"}
+    full = Layout(robot.n, base=c.identify_base, hand=c.identify_hand)
+    layout = masked(c, full, info)  # the calibrations' choice; the true arm is the same either way
     instance = seed if c.seed is None else c.seed
     rng = np.random.default_rng([instance, 1])
-    truth = simulation.true_robot(robot, layout, rng, c.axis_error, c.body_error)
+    truth = simulation.true_robot(robot, full, rng, c.axis_error, c.body_error)
     noise = dict(joint_noise=c.joint_noise, position_noise=c.position_noise, orientation_noise=c.orientation_noise,
                  position_only=c.position_only)  # fmt: skip
     cand = simulation.measure(truth, joints_within_limits(robot, c.n_candidates, rng), rng, **noise)
     val = simulation.measure(truth, joints_within_limits(robot, c.n_validation, rng), rng, **noise)
-    truth_x = layout.pack(robot, truth)
-    projector = metrics.identifiable_projector(robot, layout, np.vstack([cand.q, val.q]), c.position_only)
+    truth_x = full.pack(robot, truth)
+    projector = metrics.identifiable_projector(robot, full, np.vstack([cand.q, val.q]), c.position_only)
     on = functools.partial(_simulated_task, robot, layout, cand, val, truth_x, projector, c)
     name = f"{robot.name}-select{c.k}of{c.n_candidates}-{c.index.value}-seed{instance}"
-    return dict(candidates=cand, calibrate_on=on, truth_x=truth_x, name=name, info={"kind": "pose_selection", "seed": instance})
+    return dict(candidates=cand, calibrate_on=on, truth_x=truth_x, name=name, info=info | {"seed": instance})
 
 
 def measured(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any]:

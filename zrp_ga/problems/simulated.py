@@ -11,7 +11,7 @@ from zrp_ga.config import SimulatedConf, section
 from zrp_ga.layout import Layout
 from zrp_ga.metrics import Judge
 from zrp_ga.problem import CalibrationProblem
-from zrp_ga.problems import Task, half_ranges
+from zrp_ga.problems import Task, half_ranges, masked
 from zrp_ga.robot import ZRPRobot
 
 
@@ -19,12 +19,16 @@ def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> Task:
     """The instance of ``settings`` (``zrp_ga.config.SimulatedConf``'s keys) for ``robot``.
     The problem draws from a random stream of its own, ``[problem.seed or run_seed, 1]`` (with
     the optimiser's, the first genome would be the true errors): a named instance keeps its
-    ``problem.seed`` whatever the run's seed."""
+    ``problem.seed`` whatever the run's seed. Fixed parameters (``problem.fixed``) are the
+    calibration's choice, not the arm's: the true arm, its poses and the truth the judge holds
+    (the full genome) are the same with and without them."""
     c: SimulatedConf = section(SimulatedConf, settings, "problem")
-    layout = Layout(robot.n, base=c.identify_base, hand=c.identify_hand)
+    info = {"kind": "simulated"}
+    full = Layout(robot.n, base=c.identify_base, hand=c.identify_hand)
+    layout = masked(c, full, info)
     instance_seed = run_seed if c.seed is None else c.seed
     sim = simulation.simulate(
-        robot, layout, np.random.default_rng([instance_seed, 1]), n_poses=c.n_poses, n_validation=c.n_validation,
+        robot, full, np.random.default_rng([instance_seed, 1]), n_poses=c.n_poses, n_validation=c.n_validation,
         axis_error=c.axis_error, body_error=c.body_error, joint_noise=c.joint_noise, position_noise=c.position_noise,
         orientation_noise=c.orientation_noise, position_only=c.position_only,
     )  # fmt: skip
@@ -32,7 +36,7 @@ def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> Task:
     problem = CalibrationProblem(robot, sim.calibration, layout, -half, half, c.cost, c.norm, c.orientation_weight, c.kernel)
     validation = sim.validation if c.n_validation else None
     q = sim.calibration.q if validation is None else np.vstack([sim.calibration.q, validation.q])
-    projector = metrics.identifiable_projector(robot, layout, q, c.position_only)
+    projector = metrics.identifiable_projector(robot, full, q, c.position_only)
     name = c.name or f"{robot.name}-{c.n_poses}pose{'s' if c.n_poses > 1 else ''}-{c.cost.value}-seed{instance_seed}"
     return Task(name, problem, Judge(layout, robot, validation, sim.true_x, projector), robot,
-                info={"kind": "simulated", "seed": instance_seed})  # fmt: skip
+                info | {"seed": instance_seed})  # fmt: skip
