@@ -182,6 +182,9 @@ def test_canonical_and_best_params_keep_the_fixed_genes():
     slide = np.zeros(m.size)  # axis 5's point slid along it: both body vectors free, removed
     slide[[m.names.index(f"b0_5{c}") for c in "xyz"]], slide[[m.names.index(f"b0_6{c}") for c in "xyz"]] = u5, -u5
     assert abs(g @ slide) < 1e-15 < abs(x @ slide)
+    both = np.zeros(m.size)  # b0_3 fixed: the points on the parallel axes 2 and 3 slide together (b0_2 and b0_4)
+    both[[m.names.index(f"b0_2{c}") for c in "xyz"]], both[[m.names.index(f"b0_4{c}") for c in "xyz"]] = robot.u0[1], -robot.u0[2]
+    assert np.allclose(robot.u0[1], robot.u0[2]) and np.abs(error_model.canonical(m, robot, both)).max() < 1e-15
     t = np.random.default_rng(6).uniform(-1e-3, 1e-3, full.size)  # a full genome (a truth): fixed genes kept
     fixed = [full.names.index(k) for k in m.fixed]
     assert np.array_equal(error_model.canonical(m, robot, t)[fixed], t[fixed])

@@ -353,9 +353,10 @@ def canonical(layout: Layout, nominal: ZRPRobot, x: ArrayLike) -> Array:
     of the model, the slide of each axis point along its own (normalised) axis and any shift of
     a prismatic joint's point. Every pose and every cost stays the same; body-vector errors
     become comparable between runs (LM, whose damping moves freely along these directions,
-    otherwise reports metres). With fixed genes only the directions that leave them alone count;
-    ``x`` may also be a full genome (the fixed genes included, a simulation's truth), returned
-    full and fixed with the same directions."""
+    otherwise reports metres). With fixed genes, the combinations of these directions that leave
+    them alone (the points on two parallel axes slid together when the body vector between them
+    is fixed). ``x`` may also be a full genome (the fixed genes included, a simulation's truth),
+    returned full and fixed along the same directions."""
     x = np.asarray(x, dtype=float)
     full = layout.expand(x)
     n, whole = nominal.n, layout.unmasked
@@ -377,10 +378,15 @@ def canonical(layout: Layout, nominal: ZRPRobot, x: ArrayLike) -> Array:
             if i == n:  # every tool's end point hangs off axis n's point
                 for t in range(2, whole.n_tools + 1):
                     v[blocks[f"tool{t}"]] -= d
-            if not np.any(v[fixed]):
-                vectors.append(v)
+            vectors.append(v)
     if vectors:
-        Q = np.linalg.qr(np.array(vectors).T)[0]
+        S = np.array(vectors).T
+        if fixed.any():  # the combinations of slides that leave the fixed genes alone
+            from scipy.linalg import null_space
+
+            S = S @ null_space(S[fixed])
+    if vectors and S.shape[1]:
+        Q = np.linalg.qr(S)[0]
         full -= Q @ (Q.T @ full)
     return full if x.shape[-1] == whole.size else full[layout.free]
 
