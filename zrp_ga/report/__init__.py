@@ -38,9 +38,10 @@ Words and numbers
 - **ECDF** (fixed-target) per configuration: at each budget b, the fraction of (run, target) pairs
   hit within b evaluations, aggregated over the configuration's (instance, level) pairs, each
   pair weighing the same (within a pair, the share of its runs). ``ecdf.csv`` holds it for the
-  levels; the figures use COCO's targets instead: 51 per instance, f_ref + (f0 - f_ref)
-  10^(-k/5) for k = 0 .. 50 (f0 the median first cost of the instance's runs), budgets in
-  evaluations per gene (``ecdf_targets.csv``).
+  levels; the figures use COCO-style targets instead: 51 per instance, their distances to f_ref
+  log-spaced from f0 - f_ref (f0 the median first cost of the instance's runs) down to
+  0.01 f_ref, so that the last is the tightest level, 1.01 x f_ref; budgets in evaluations per
+  gene (``ecdf_targets.csv``).
 - **Fixed budget** at b evaluations (``--budgets``, default 100, 1,000, 10,000): a run's best cost
   within b evaluations over f_ref (a run that stopped earlier counts with its final best), the
   median over runs per instance, and the median of those over instances.

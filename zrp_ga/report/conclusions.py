@@ -79,15 +79,16 @@ def within(t: dict) -> list[str]:
             rest = k - 1 - len(better)
             head += (f"not significantly lower than {_count(rest, 'other')}." if rest else "that is all of them.")
             head += f" Against the closest of them it beats, {other}: {effect_text(worst, best, str(other))}."
-        else:
-            closest = mine.loc[mine["p"].idxmin()] if len(mine) else None
-            head += f"It is not significantly better than any other ({test}, Holm)."
-            if closest is not None:
-                other = closest["b"] if closest["a"] == best else closest["a"]
-                head += f" Against {other}: {effect_text(closest, best, str(other))}, {p_text(closest['p_holm'])} after Holm."
         floor_p = stats.smallest_p(design, n)
         m = len(pairs)
-        if floor_p * 1 >= ALPHA or (m > 1 and floor_p * m >= ALPHA and not len(better)):
+        limited = floor_p >= ALPHA or (m > 1 and floor_p * m >= ALPHA and not len(better))
+        if not len(better):
+            head += f"It is not significantly better than any other ({test}, Holm)."
+            closest = mine.loc[mine["p"].idxmin()] if len(mine) else None
+            if closest is not None and not limited:
+                other = closest["b"] if closest["a"] == best else closest["a"]
+                head += f" Against {other}: {effect_text(closest, best, str(other))}, {p_text(closest['p_holm'])} after Holm."
+        if limited:
             head += (f" With {_count(n, 'seed' if design == stats.PAIRED else 'run')} the smallest p-value a pairwise test can give is "
                      f"{floor_p:.2g} (before correcting for {m} pairs): more seeds are needed to separate configurations.")  # fmt: skip
         out.append(head)
