@@ -113,9 +113,7 @@ def factors(t: dict) -> list[str]:
             where = f"on {len(sig)} of {len(per)} instances" if len(per) > 1 else ("on its instance" if len(sig) else "")
             test = per["test"].iloc[0]
         else:  # two values: the one pairwise test per instance
-            per2 = inst_pairs.copy()
-            if len(per2) > 1:
-                per2["p_holm"] = stats.holm(per2["p"].to_numpy())
+            per2 = inst_pairs  # their p_holm: corrected over the instances (tables.factorial)
             sig = per2[per2["p_holm"] < ALPHA]
             where = f"on {len(sig)} of {len(per2)} instances" if len(per2) > 1 else ""
             test = per2["test"].iloc[0] if len(per2) else ""

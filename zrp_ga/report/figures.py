@@ -72,10 +72,10 @@ def save(fig: Figure, out: Path, name: str, formats: tuple[str, ...]) -> str:
     return text[text.index("<svg"):]
 
 
-def wrap(label: str) -> str:
-    """A legend label broken into lines that fit the style's width (a paper's column holds
-    about 44 characters of 8 pt text beside the line's sample)."""
-    return textwrap.fill(label, 44 if _STYLE["name"] == "paper" else 90, subsequent_indent="  ")
+def wrap(label: str, paper: int = 44) -> str:
+    """A label broken into lines that fit the style's width (a paper's column holds about 44
+    characters of 8 pt text beside a legend's line sample)."""
+    return textwrap.fill(label, paper if _STYLE["name"] == "paper" else 2 * paper, subsequent_indent="  ")
 
 
 def _height(labels: list[str], axes: float = 2.3) -> float:
@@ -116,7 +116,7 @@ def convergence_runs(chosen: list[tuple[str, Run]], total: int, instance: str, f
         best = conv["best"].where(np.isfinite(conv["best"])).to_numpy(dtype=float)
         if math.isfinite(floor) and floor > 0:
             best = np.maximum(best, floor)
-        ax.plot(conv["gen"], best, marker="o", ms=2, label=label, **st)
+        ax.plot(conv["gen"], best, marker="o" if len(conv) <= 30 else None, ms=2, label=label, **st)
         values.extend(best[np.isfinite(best)])
     if math.isfinite(floor) and floor > 0:
         what = "round-off floor (1e-9 x nominal cost)" if round_off else "floor f* (LM's cost)"
@@ -234,16 +234,17 @@ def validation_boxplot(runs_df: pd.DataFrame, shown: list[str], note: str, out: 
     data = {lab: v for lab, v in data.items() if len(v)}
     if not data:
         return None
-    fig = Figure(figsize=(width(), 1.0 + 0.32 * len(data)), layout="constrained")
-    ax = fig.subplots()
     names = list(data)[::-1]
+    ticks = [wrap(n, 30) for n in names]
+    fig = Figure(figsize=(width(), 1.0 + sum(0.14 * (t.count("\n") + 1) + 0.1 for t in ticks)), layout="constrained")
+    ax = fig.subplots()
     ax.boxplot([data[n] for n in names], orientation="horizontal", tick_labels=[""] * len(names), widths=0.6, showfliers=False,
                medianprops={"color": "C3"})  # fmt: skip
     rng = np.random.default_rng(0)
     for i, n in enumerate(names, start=1):
         if len(data[n]) <= points_up_to:
             ax.plot(data[n], i + rng.uniform(-0.18, 0.18, len(data[n])), "o", ms=2.2, color="k", alpha=0.6, mec="none")
-    ax.set_yticks(range(1, len(names) + 1), names)
+    ax.set_yticks(range(1, len(names) + 1), ticks)
     nominal = runs_df["val_rms_nominal_mm"].dropna()
     xlabel = "RMS position error on validation poses, mm"
     if len(nominal):
@@ -284,7 +285,7 @@ def critical_difference(result: dict, out: Path, formats: tuple[str, ...], top: 
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(axis="x", lw=0.3, alpha=0.5)
         ax.set_xlabel(f"mean rank over {result['instances']} instances (1 = best of {k})")
-        ax.legend(loc="lower right", frameon=True)
+        ax.legend(loc="upper right", frameon=True)
         ax.set_title(title, fontsize="medium")
         return save(fig, out, "critical_difference", formats)
     cliques = []
