@@ -138,7 +138,7 @@ def design(t: dict, runs) -> str:
                            "reference": "f_ref"}),
         "<p>f* is Levenberg-Marquardt's cost on the instance where the runs carry it (else the lowest final cost); where it is "
         "below 1e-9 of the nominal cost it is round-off and f_ref = 1e-9 x the nominal cost, else f_ref = f*.</p>",
-        "<h3>Configurations</h3>", table(conf, max_rows=60),
+        "<h3>Configurations</h3>", table(conf, max_rows=16),
         "<h3>Runs left out</h3>",
         table(left, max_rows=20) if len(left) else "<p>None: every run found finished and its files read whole.</p>",
     ]
