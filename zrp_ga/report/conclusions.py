@@ -124,12 +124,21 @@ def factors(t: dict) -> list[str]:
         if len(sig):
             best_by = sig.groupby("best").size().sort_values(ascending=False)
             top = str(best_by.index[0])
-            s = f"{name[0].upper() + name[1:]} matters {where} ({test}, {blocks}{corr}; {p_text(sig['p_holm'].max()).replace('=', '<=')})"
+            s = f"{name[0].upper() + name[1:]} matters{' ' + where if where else ''} ({test}, {blocks}{corr}; {p_text(sig['p_holm'].max()).replace('=', '<=')})"
             s += f"; best: {top} on {best_by.iloc[0]} of them" if len(per) > 1 else f"; best: {top}"
         else:
             lo = per["p_holm"].min() if len(per) else math.nan
             s = (f"{name[0].upper() + name[1:]} makes no significant difference" + (f" on any of the {len(per)} instances" if len(per) > 1 else "")
                  + f" ({test}, {blocks}{corr}; p >= {lo:.2g})")  # fmt: skip
+        if t["floors"]["instance"].nunique() == 1 and len(inst_pairs):  # one instance: its effect, against the closest rival
+            best = str(g["best"].iloc[0])
+            mp = m[m["instance"] != "all"].set_index("value")["median_final_over_ref"]
+            s += ". Median final / f_ref: " + ", ".join(f"{v} {x:.3g}" for v, x in mp.sort_values().items())
+            mine = inst_pairs[(inst_pairs["a"] == best) | (inst_pairs["b"] == best)]
+            if len(mine):
+                row = mine.loc[mine["p"].idxmax()]
+                other = str(row["b"] if row["a"] == best else row["a"])
+                s += f"; {effect_text(row, best, other)}, {p_text(row['p_holm'])}"
         if len(pooled) and pooled["instance"].nunique() and t["floors"]["instance"].nunique() > 1:
             pp = pooled[pooled["a"] != "all"]
             best = str(pooled["best"].iloc[0])
