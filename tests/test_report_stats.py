@@ -137,6 +137,7 @@ def test_factorial_main_effects_paired_by_the_other_settings():
     assert set(x["design"]) == {stats.PAIRED}
     assert x.loc["I1", "n_a"] == 10  # blocks: 5 seeds x 2 values of y
     assert x.loc["I1", "p"] == pytest.approx(2 / 2**10)  # x1 worse in all ten blocks
+    assert x.loc["I1", "p_holm"] == x.loc["I2", "p_holm"] == pytest.approx(2 * 2 / 2**10)  # Holm over the two instances
     assert x.loc["all", "n_a"] == 20 and x.loc["all", "effect"] == 1.0  # across instances: the instance joins the block
     assert set(medians[medians["setting"] == "x"]["instance"]) == {"I1", "I2", "all"}
     y = tests[(tests["setting"] == "y") & (tests["a"] != "all")].set_index("instance")

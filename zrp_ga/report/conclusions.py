@@ -79,15 +79,16 @@ def within(t: dict) -> list[str]:
             rest = k - 1 - len(better)
             head += (f"not significantly lower than {_count(rest, 'other')}." if rest else "that is all of them.")
             head += f" Against the closest of them it beats, {other}: {effect_text(worst, best, str(other))}."
-        else:
-            closest = mine.loc[mine["p"].idxmin()] if len(mine) else None
-            head += f"It is not significantly better than any other ({test}, Holm)."
-            if closest is not None:
-                other = closest["b"] if closest["a"] == best else closest["a"]
-                head += f" Against {other}: {effect_text(closest, best, str(other))}, {p_text(closest['p_holm'])} after Holm."
         floor_p = stats.smallest_p(design, n)
         m = len(pairs)
-        if floor_p * 1 >= ALPHA or (m > 1 and floor_p * m >= ALPHA and not len(better)):
+        limited = floor_p >= ALPHA or (m > 1 and floor_p * m >= ALPHA and not len(better))
+        if not len(better):
+            head += f"It is not significantly better than any other ({test}, Holm)."
+            closest = mine.loc[mine["p"].idxmin()] if len(mine) else None
+            if closest is not None and not limited:
+                other = closest["b"] if closest["a"] == best else closest["a"]
+                head += f" Against {other}: {effect_text(closest, best, str(other))}, {p_text(closest['p_holm'])} after Holm."
+        if limited:
             head += (f" With {_count(n, 'seed' if design == stats.PAIRED else 'run')} the smallest p-value a pairwise test can give is "
                      f"{floor_p:.2g} (before correcting for {m} pairs): more seeds are needed to separate configurations.")  # fmt: skip
         out.append(head)
@@ -112,9 +113,7 @@ def factors(t: dict) -> list[str]:
             where = f"on {len(sig)} of {len(per)} instances" if len(per) > 1 else ("on its instance" if len(sig) else "")
             test = per["test"].iloc[0]
         else:  # two values: the one pairwise test per instance
-            per2 = inst_pairs.copy()
-            if len(per2) > 1:
-                per2["p_holm"] = stats.holm(per2["p"].to_numpy())
+            per2 = inst_pairs  # their p_holm: corrected over the instances (tables.factorial)
             sig = per2[per2["p_holm"] < ALPHA]
             where = f"on {len(sig)} of {len(per2)} instances" if len(per2) > 1 else ""
             test = per2["test"].iloc[0] if len(per2) else ""
@@ -125,12 +124,21 @@ def factors(t: dict) -> list[str]:
         if len(sig):
             best_by = sig.groupby("best").size().sort_values(ascending=False)
             top = str(best_by.index[0])
-            s = f"{name[0].upper() + name[1:]} matters {where} ({test}, {blocks}{corr}; {p_text(sig['p_holm'].max()).replace('=', '<=')})"
+            s = f"{name[0].upper() + name[1:]} matters{' ' + where if where else ''} ({test}, {blocks}{corr}; {p_text(sig['p_holm'].max()).replace('=', '<=')})"
             s += f"; best: {top} on {best_by.iloc[0]} of them" if len(per) > 1 else f"; best: {top}"
         else:
             lo = per["p_holm"].min() if len(per) else math.nan
             s = (f"{name[0].upper() + name[1:]} makes no significant difference" + (f" on any of the {len(per)} instances" if len(per) > 1 else "")
                  + f" ({test}, {blocks}{corr}; p >= {lo:.2g})")  # fmt: skip
+        if t["floors"]["instance"].nunique() == 1 and len(inst_pairs):  # one instance: its effect, against the closest rival
+            best = str(g["best"].iloc[0])
+            mp = m[m["instance"] != "all"].set_index("value")["median_final_over_ref"]
+            s += ". Median final / f_ref: " + ", ".join(f"{v} {x:.3g}" for v, x in mp.sort_values().items())
+            mine = inst_pairs[(inst_pairs["a"] == best) | (inst_pairs["b"] == best)]
+            if len(mine):
+                row = mine.loc[mine["p"].idxmax()]
+                other = str(row["b"] if row["a"] == best else row["a"])
+                s += f"; {effect_text(row, best, other)}, {p_text(row['p_holm'])}"
         if len(pooled) and pooled["instance"].nunique() and t["floors"]["instance"].nunique() > 1:
             pp = pooled[pooled["a"] != "all"]
             best = str(pooled["best"].iloc[0])

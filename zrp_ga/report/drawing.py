@@ -85,7 +85,6 @@ def draw(runs: list[Run], t: dict, stage: Path, formats: tuple[str, ...], rule: 
     tg = targets.ecdf_targets(runs, floors)
     if tg and rule.absolute is None:
         hits = targets.runtime_hits(runs, labels, tg)
-        start = float(hits["nevals"].min() / max(hits["nevals"].max(), 1)) if len(hits) else 1.0
         dims = {r.instance: max(targets.dimension(r), 1) for r in runs}
         start = 1.0 / max(dims.values())
         agg = targets.ecdf(hits, start)
@@ -97,11 +96,11 @@ def draw(runs: list[Run], t: dict, stage: Path, formats: tuple[str, ...], rule: 
         drawn = figures.ecdf(agg, per, ecdf_shown, ends, targets.ECDF_TARGETS, note, stage, formats)
         genes = sorted(set(dims.values()))
         per_gene = f"divided by the genome's length ({', '.join(map(str, genes))} genes)"
-        base = (f"Runtime ECDF as COCO draws it: for {targets.ECDF_TARGETS} targets per instance, log-spaced five per decade "
-                "from the instance's starting cost (the median first cost of its runs) down to its floor f_ref "
-                "(target k = f_ref + (f0 - f_ref) 10^(-k/5)), the fraction of (run, target) pairs reached within a budget, "
-                f"the budget in evaluations {per_gene}. x: the longest run. Higher and further left is better; the value at the "
-                "right end tells how close to the floor the runs came, 1 = every target, the floor itself. ")  # fmt: skip
+        base = (f"Runtime ECDF as COCO draws it: for {targets.ECDF_TARGETS} targets per instance, their distances to the floor "
+                "f_ref log-spaced from the instance's starting cost f0 (the median first cost of its runs) down to the tightest "
+                "level, 1.01 x f_ref (target k = f_ref + (f0 - f_ref) r^k), the fraction of (run, target) pairs reached within a "
+                f"budget, the budget in evaluations {per_gene}. x: the longest run. Higher and further left is better; the value "
+                "at the right end tells how close to the floor the runs came (1: every target, down to 1.01 x f_ref). ")  # fmt: skip
         for name, svg in drawn:
             if name == "ecdf_evals_to_target":
                 out.append(dict(name=name, svg=svg, title="Targets reached, over all instances",

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import io
 import math
+import textwrap
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -71,8 +72,23 @@ def save(fig: Figure, out: Path, name: str, formats: tuple[str, ...]) -> str:
     return text[text.index("<svg"):]
 
 
+def wrap(label: str, paper: int = 44) -> str:
+    """A label broken into lines that fit the style's width (a paper's column holds about 44
+    characters of 8 pt text beside a legend's line sample)."""
+    return textwrap.fill(label, paper if _STYLE["name"] == "paper" else 2 * paper, subsequent_indent="  ")
+
+
+def _height(labels: list[str], axes: float = 2.3) -> float:
+    """A figure's height, inches: ``axes`` for the axes and their labels, and room for a legend
+    of ``labels`` below them (each wrapped)."""
+    lines = sum(wrap(lab).count("\n") + 1 for lab in labels) + 1
+    return axes + 0.16 * lines * (1.0 if _STYLE["name"] == "paper" else 1.2)
+
+
 def _legend_below(ax, n: int, title: str | None = None) -> None:
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False, ncol=1, title=title, alignment="left")
+    handles, labels = ax.get_legend_handles_labels()
+    ax.legend(handles, [wrap(lab) for lab in labels], loc="upper center", bbox_to_anchor=(0.5, -0.18), frameon=False, ncol=1,
+              title=wrap(title) if title else None, alignment="left")  # fmt: skip
 
 
 def _styles(n: int) -> list[dict]:
@@ -92,7 +108,7 @@ def convergence_runs(chosen: list[tuple[str, Run]], total: int, instance: str, f
     """The paper's Fig. 2: the best cost per generation of the median run of each configuration
     in ``chosen`` (of ``total``) on ``instance``; costs below ``floor`` (the round-off floor
     when ``round_off``, else LM's floor f*) are drawn at it, and the floor as a line."""
-    fig = Figure(figsize=(width(), 2.6 + 0.17 * len(chosen)), layout="constrained")
+    fig = Figure(figsize=(width(), _height([lab for lab, _ in chosen] + ["floor"])), layout="constrained")
     ax = fig.subplots()
     values = []
     for (label, run), st in zip(chosen, _styles(len(chosen))):
@@ -100,7 +116,7 @@ def convergence_runs(chosen: list[tuple[str, Run]], total: int, instance: str, f
         best = conv["best"].where(np.isfinite(conv["best"])).to_numpy(dtype=float)
         if math.isfinite(floor) and floor > 0:
             best = np.maximum(best, floor)
-        ax.plot(conv["gen"], best, marker="o", ms=2, label=label, **st)
+        ax.plot(conv["gen"], best, marker="o" if len(conv) <= 30 else None, ms=2, label=label, **st)
         values.extend(best[np.isfinite(best)])
     if math.isfinite(floor) and floor > 0:
         what = "round-off floor (1e-9 x nominal cost)" if round_off else "floor f* (LM's cost)"
@@ -134,7 +150,7 @@ def convergence_by_configuration(runs: list[Run], labels: list[str], shown: list
     horizontal lines to draw, {label: y}."""
     top = max(int(r.evals[-1]) for r in runs)
     grid = np.unique(np.geomspace(1, max(top, 2), 200).round())
-    fig = Figure(figsize=(width(), 2.6 + 0.17 * len(shown)), layout="constrained")
+    fig = Figure(figsize=(width(), _height([f"{lab} (10 runs)" for lab in shown] + list(lines)[:2])), layout="constrained")
     ax = fig.subplots()
     for label, st in zip(shown, _styles(len(shown))):
         members = [r for r, lab in zip(runs, labels) if lab == label]
@@ -178,7 +194,7 @@ def ecdf(aggregated: pd.DataFrame, per_instance: dict[str, pd.DataFrame], shown:
     the instances (``ecdf_evals_to_target``) and one panel per instance
     (``ecdf_by_instance``, when there are several); each curve drawn up to ``ends`` (its longest
     run, marked x). Returns (name, SVG) per figure."""
-    fig = Figure(figsize=(width(), 2.4 + 0.17 * len(shown)), layout="constrained")
+    fig = Figure(figsize=(width(), _height(shown)), layout="constrained")
     ax = fig.subplots()
     _ecdf_axes(ax, aggregated, shown, ends, True)
     ax.set_xlabel("evaluations / genes")
@@ -189,7 +205,7 @@ def ecdf(aggregated: pd.DataFrame, per_instance: dict[str, pd.DataFrame], shown:
         n = len(per_instance)
         cols = 3 if n > 4 else 2
         rows = math.ceil(n / cols)
-        fig = Figure(figsize=(width(wide=True), 1.9 * rows + 0.4 + 0.17 * len(shown)), layout="constrained")
+        fig = Figure(figsize=(width(wide=True), 1.9 * rows + 0.4 + 0.16 * math.ceil(len(shown) / 2)), layout="constrained")
         axes = fig.subplots(rows, cols, sharex=True, sharey=True, squeeze=False).ravel()
         for k, (ax, (instance, c)) in enumerate(zip(axes, per_instance.items())):
             _ecdf_axes(ax, c, shown, ends, k == 0)
@@ -202,7 +218,8 @@ def ecdf(aggregated: pd.DataFrame, per_instance: dict[str, pd.DataFrame], shown:
                 ax.xaxis.set_tick_params(labelbottom=True)
             if k % cols == 0:
                 ax.set_ylabel(f"fraction of {targets}\ntargets hit")
-        fig.legend(loc="outside lower center", frameon=False, ncol=2 if len(shown) > 1 else 1)
+        handles, labels = axes[0].get_legend_handles_labels()
+        fig.legend(handles, [wrap(lab) for lab in labels], loc="outside lower center", frameon=False, ncol=2 if len(shown) > 1 else 1)
         drawn.append(("ecdf_by_instance", save(fig, out, "ecdf_by_instance", formats)))
     return drawn
 
@@ -217,16 +234,17 @@ def validation_boxplot(runs_df: pd.DataFrame, shown: list[str], note: str, out: 
     data = {lab: v for lab, v in data.items() if len(v)}
     if not data:
         return None
-    fig = Figure(figsize=(width(), 1.0 + 0.32 * len(data)), layout="constrained")
-    ax = fig.subplots()
     names = list(data)[::-1]
+    ticks = [wrap(n, 30) for n in names]
+    fig = Figure(figsize=(width(), 1.0 + sum(0.14 * (t.count("\n") + 1) + 0.1 for t in ticks)), layout="constrained")
+    ax = fig.subplots()
     ax.boxplot([data[n] for n in names], orientation="horizontal", tick_labels=[""] * len(names), widths=0.6, showfliers=False,
                medianprops={"color": "C3"})  # fmt: skip
     rng = np.random.default_rng(0)
     for i, n in enumerate(names, start=1):
         if len(data[n]) <= points_up_to:
             ax.plot(data[n], i + rng.uniform(-0.18, 0.18, len(data[n])), "o", ms=2.2, color="k", alpha=0.6, mec="none")
-    ax.set_yticks(range(1, len(names) + 1), names)
+    ax.set_yticks(range(1, len(names) + 1), ticks)
     nominal = runs_df["val_rms_nominal_mm"].dropna()
     xlabel = "RMS position error on validation poses, mm"
     if len(nominal):
@@ -267,7 +285,7 @@ def critical_difference(result: dict, out: Path, formats: tuple[str, ...], top: 
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(axis="x", lw=0.3, alpha=0.5)
         ax.set_xlabel(f"mean rank over {result['instances']} instances (1 = best of {k})")
-        ax.legend(loc="lower right", frameon=True)
+        ax.legend(loc="upper right", frameon=True)
         ax.set_title(title, fontsize="medium")
         return save(fig, out, "critical_difference", formats)
     cliques = []

@@ -29,7 +29,7 @@ figure{margin:1.2em 0 2em;padding:0}figure svg{max-width:100%;height:auto;displa
 figcaption{font-size:.92em;color:#333;max-width:52em;margin-top:.4em}figcaption b{color:#000}
 table{border-collapse:collapse;font-size:.85em;margin:.5em 0 1em}
 th,td{border-bottom:1px solid #e3e3e3;padding:.25em .6em;text-align:left;vertical-align:top}
-th{background:#f3f3f3;position:sticky;top:0}td.n{text-align:right;font-variant-numeric:tabular-nums}
+th{background:#f3f3f3;position:sticky;top:0}td:first-child{min-width:14em}td.n{text-align:right;font-variant-numeric:tabular-nums}
 .wide{overflow-x:auto;max-width:100%}
 details{margin:.4em 0 1em}summary{cursor:pointer;color:#0b57d0}
 ul.concl li{margin:.35em 0}
@@ -138,7 +138,7 @@ def design(t: dict, runs) -> str:
                            "reference": "f_ref"}),
         "<p>f* is Levenberg-Marquardt's cost on the instance where the runs carry it (else the lowest final cost); where it is "
         "below 1e-9 of the nominal cost it is round-off and f_ref = 1e-9 x the nominal cost, else f_ref = f*.</p>",
-        "<h3>Configurations</h3>", table(conf, max_rows=60),
+        "<h3>Configurations</h3>", table(conf, max_rows=16),
         "<h3>Runs left out</h3>",
         table(left, max_rows=20) if len(left) else "<p>None: every run found finished and its files read whole.</p>",
     ]

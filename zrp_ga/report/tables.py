@@ -167,8 +167,8 @@ def factorial(runs_df: pd.DataFrame, keys: list[str]) -> tuple[pd.DataFrame, pd.
     """The main effect of each setting over the others, per instance and across instances
     (``instance`` "all"): the values of the setting compared on final cost / f_ref, paired by the
     other settings and the seed (and the instance, across instances) when every value ran on the
-    same such blocks, else as independent runs; per setting, the omnibus p-values are
-    Holm-adjusted over the instances (the row "all" is not). Returns the tests and the median
+    same such blocks, else as independent runs; per setting, the omnibus p-values (with two
+    values: the one pair's) are Holm-adjusted over the instances (the row "all" is not). Returns the tests and the median
     final / f_ref per (setting, instance, value)."""
     tests, medians = [], []
     for key in keys:
@@ -199,6 +199,8 @@ def factorial(runs_df: pd.DataFrame, keys: list[str]) -> tuple[pd.DataFrame, pd.
         if per_setting:
             df = pd.concat(per_setting, ignore_index=True)
             sel = (df["a"] == "all") & (df["instance"] != "all")
+            if not sel.any():  # two values: one pair per instance, corrected over the instances
+                sel = (df["a"] != "all") & (df["instance"] != "all")
             if sel.any():
                 df.loc[sel, "p_holm"] = stats.holm(df.loc[sel, "p"].to_numpy())
             tests.append(df)

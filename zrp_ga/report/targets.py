@@ -167,8 +167,7 @@ def fixed_budget(runs: list[Run], labels: list[str], table: pd.DataFrame, budget
               .agg(runs="size", median_cost_over_ref="median").reset_index())  # fmt: skip
 
 
-ECDF_TARGETS = 51  # COCO's: five per decade over ten decades
-PER_DECADE = 5
+ECDF_TARGETS = 51  # as many as COCO's (five per decade over ten decades there)
 
 
 def dimension(run: Run) -> int:
@@ -177,18 +176,20 @@ def dimension(run: Run) -> int:
     return len(genome) if isinstance(genome, (dict, list)) else 0
 
 
-def ecdf_targets(runs: list[Run], table: pd.DataFrame, n: int = ECDF_TARGETS, per_decade: int = PER_DECADE) -> dict[str, np.ndarray]:
-    """The runtime ECDF's targets per instance, as COCO sets them above the optimum: f_ref +
-    (f0 - f_ref) 10^(-k / per_decade) for k = 0 .. n - 1, f0 the instance's starting cost (the
-    median over its runs of the cost of the first evaluation), f_ref its reference (none when
-    either is not finite or f0 <= f_ref)."""
+def ecdf_targets(runs: list[Run], table: pd.DataFrame, n: int = ECDF_TARGETS, tightest: float = 1.01) -> dict[str, np.ndarray]:
+    """The runtime ECDF's targets per instance, as COCO sets them above the optimum: ``n``
+    targets f_ref + d_k, the excesses d_k log-spaced from d_0 = f0 - f_ref (f0 the instance's
+    starting cost: the median over its runs of the cost of the first evaluation) down to
+    d_{n-1} = (``tightest`` - 1) f_ref, so that the last target is the tightest headline level
+    (1.01 x f_ref). None for an instance whose f0 or f_ref is not finite, or f0 <= ``tightest``
+    x f_ref."""
     reference = table.set_index("instance")["reference"]
     out = {}
     for instance, group in _by_instance(runs).items():
         f0 = float(np.median([r.best[0] for r in group]))
         ref = float(reference.loc[instance])
-        if math.isfinite(f0) and math.isfinite(ref) and f0 > ref:
-            out[instance] = ref + (f0 - ref) * 10.0 ** (-np.arange(n) / per_decade)
+        if math.isfinite(f0) and math.isfinite(ref) and ref > 0 and f0 > tightest * ref:
+            out[instance] = ref + np.geomspace(f0 - ref, (tightest - 1) * ref, n)
     return out
 
 
