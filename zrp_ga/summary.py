@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +32,7 @@ from zrp_ga import error_model, records, robot_files
 from zrp_ga.algorithms import Result
 from zrp_ga.config import Cost, Objective
 from zrp_ga.problems import Task
+from zrp_ga.problems.protocol import SelfJudging
 from zrp_ga.run import directory
 from zrp_ga.run.shared import Cache
 
@@ -102,16 +103,6 @@ def objective(cfg, task: Task, written: dict, key: str, cache: Cache, sweep: Pat
         written["floor"] = floor(task, key, cache, sweep)
         return float(written["final_cost"]) / written["floor"]["reference"]
     return float(written["final_cost"])
-
-
-@runtime_checkable
-class SelfJudging(Protocol):
-    """A problem kind whose genomes are not parameter errors (zrp_ga.problems.selection): it
-    judges its own results and tables its own genomes, and has no calibration floor."""
-
-    def judged(self, result: Result) -> tuple[dict, np.ndarray]: ...
-
-    def params_table(self, x: np.ndarray) -> list[dict]: ...
 
 
 def worse_than_nominal(result: Result, nominal_cost: float) -> bool:

@@ -20,9 +20,9 @@ from omegaconf import DictConfig, OmegaConf
 
 from zrp_ga import config
 from zrp_ga.config import ConfigError
+from zrp_ga.problems.protocol import SelfJudging
 from zrp_ga.run import directory
 from zrp_ga.run.shared import CACHE, Cache
-from zrp_ga.summary import SelfJudging
 
 # Command-line settings that a resumed run accepts besides resume (they change no result).
 RESUME_KEEPS = ("resume=", "progress=", "hydra.")
