@@ -82,7 +82,7 @@ class SweepProgress:
         self.bar = None
         if enabled and tty:
             self.bar = tqdm(total=total, file=_CursorBack(self.stream), bar_format=BAR, smoothing=0,
-                            mininterval=0.2, dynamic_ncols=True, leave=True)  # fmt: skip
+                            mininterval=0.2, dynamic_ncols=True, leave=True, postfix=_postfix(0, 0))  # fmt: skip
 
     def show(self, done: int, failed: int, running: int) -> None:
         if self.bar is not None:
