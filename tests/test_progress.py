@@ -82,6 +82,32 @@ def test_progress_line_time_left_comes_from_the_generations_after_the_first():
     assert "time left" not in first and second.endswith("time left   14.0 s")
 
 
+def test_progress_line_time_left_starts_after_the_last_generation_that_compiled(monkeypatch):
+    from zrp_ga import _numba
+
+    class Partway:
+        done = 0.1
+
+        def fraction_done(self):
+            return self.done
+
+        def has_next(self):
+            return True
+
+    compiled = [5]
+    monkeypatch.setattr(_numba, "compilations", lambda: compiled[0])
+    out, algorithm = io.StringIO(), Partway()
+    progress = callbacks.Progress(stream=out, every_s=0)
+    progress.on_generation(algorithm, {"gen": 0, "nevals": 40, "best": 1.0, "wall_s": 10.0})
+    algorithm.done, compiled[0] = 0.2, 9  # generation 1 compiled the variation operators
+    progress.on_generation(algorithm, {"gen": 1, "nevals": 80, "best": 0.7, "wall_s": 30.0})
+    algorithm.done = 0.4
+    progress.on_generation(algorithm, {"gen": 3, "nevals": 160, "best": 0.5, "wall_s": 34.0})
+    lines = out.getvalue().splitlines()
+    assert "time left" not in lines[1]  # no pace yet: generation 1 compiled
+    assert lines[2].endswith("time left   12.0 s")  # 20 % in 4 s, 60 % to go
+
+
 CALL_ONE_KERNEL = "from zrp_ga import _kernels; _kernels._rotate(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0)"
 
 
