@@ -127,3 +127,25 @@ def test_first_compilation_says_so_and_a_warm_cache_says_nothing(tmp_path):
     assert "compiling" not in warm.stderr
     plain = _python("import numba; numba.njit(lambda x: x + 1)(1)", tmp_path / "other")
     assert "compiling" not in plain.stderr  # numba code that is not this package's
+
+
+def test_the_launcher_counts_jobs_ended_failed_and_running():
+    from types import SimpleNamespace
+
+    from hydra.core.utils import JobReturn, JobStatus
+
+    from hydra_plugins.zrp_ga_launcher import _workers
+
+    shown = []
+    d = _workers._Dispatcher.__new__(_workers._Dispatcher)
+    d.returns = {
+        0: JobReturn(status=JobStatus.COMPLETED),
+        1: JobReturn(status=JobStatus.FAILED),
+        2: JobReturn(status=JobStatus.COMPLETED),
+    }
+    busy, idle = SimpleNamespace(batches=[[3], [5]]), SimpleNamespace(batches=[])
+    d.pool = SimpleNamespace(workers=[busy, idle, SimpleNamespace(batches=[[4]])])
+    d.progress = SimpleNamespace(show=lambda *a: shown.append(("show", *a)), close=lambda *a: shown.append(("close", *a)))
+    d.show_progress()
+    d.show_progress(close=True)
+    assert shown == [("show", 3, 1, 2), ("close", 3, 1, 0)]  # a worker runs one job at a time
