@@ -175,17 +175,23 @@ def test_joblib_sweep_runs_jobs_in_parallel_processes(tmp_path):
 
 
 def test_progress_line_shows_generation_evaluations_best_and_time_left():
-    class Quarter:  # an algorithm a quarter through its budget, not done
+    class Partway:  # an algorithm part way through its budget, not done
+        done = 0.125
+
         def fraction_done(self):
-            return 0.25
+            return self.done
 
         def has_next(self):
             return True
 
-    out = io.StringIO()
-    callbacks.Progress(stream=out).on_generation(Quarter(), {"gen": 25, "nevals": 520, "best": 0.0123, "val_rms_mm": 1.5, "wall_s": 2.0})
-    line = out.getvalue()
-    assert line == "gen    25  evals      520  best 0.0123  val_rms 1.5 mm  time left    6.0 s\n"  # 6 s to go
+    out, algorithm = io.StringIO(), Partway()
+    progress = callbacks.Progress(stream=out, every_s=0)
+    progress.on_generation(algorithm, {"gen": 1, "nevals": 40, "best": 0.5, "val_rms_mm": 9.0, "wall_s": 1.0})
+    algorithm.done = 0.25
+    progress.on_generation(algorithm, {"gen": 25, "nevals": 520, "best": 0.0123, "val_rms_mm": 1.5, "wall_s": 2.0})
+    first, line = out.getvalue().splitlines(keepends=True)
+    assert "time left" not in first  # no pace yet after the first generation
+    assert line == "gen    25  evals      520  best 0.0123  val_rms 1.5 mm  time left    6.0 s\n"  # 1 s per 1/8: 6 s to go
 
 
 def test_progress_line_on_a_terminal_is_rewritten_in_place_and_ends_once():

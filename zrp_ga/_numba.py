@@ -9,6 +9,11 @@ validated against the source file's time stamp as numba always does. A ``NUMBA_C
 the user set keeps precedence. When no cache folder can be written, functions are compiled in
 each process and nothing is written anywhere.
 
+The first time this package's code is compiled in a process, one line on stderr says so (on a
+fresh machine that takes about half a minute of otherwise silent work): a listener on numba's
+``numba:compile`` event, which numba broadcasts only when it compiles, not when it loads a
+function from the cache.
+
 numba has no public hook for this: the locator below subclasses the one numba uses for its own
 user-wide cache and is put in front of the in-tree locator. Should numba's internals change,
 caching is switched off rather than falling back to the package folder.
@@ -17,9 +22,11 @@ caching is switched off rather than falling back to the package folder.
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 from numba import njit
+from numba.core import event
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 
@@ -79,6 +86,55 @@ def _cache_usable() -> bool:
 
 
 CACHE = _cache_usable()
+
+
+def cache_is_cold() -> bool:
+    """True when the cache holds no compiled function yet (no numba index file)."""
+    root = Path(os.environ.get("NUMBA_CACHE_DIR") or cache_dir())
+    return not any(root.rglob("*.nbi"))
+
+
+def compile_notice(cold: bool, cache: bool) -> str:
+    """The line said before this package's code is compiled, for a cold or partly warm cache,
+    or none usable."""
+    if not cache:
+        return "compiling the kernels (no writable cache folder: in every process, about 30 s)..."
+    if cold:
+        return "compiling the kernels (once per machine, about 30 s)..."
+    return "compiling the kernels changed since they were cached..."
+
+
+def compilations() -> int:
+    """How many functions numba has compiled in this process so far (loads from the cache not
+    counted): a progress line's time left leaves out the time before the last of them."""
+    return _CompileNotice.count
+
+
+class _CompileNotice(event.Listener):
+    """Says :func:`compile_notice` on stderr once per process, when numba starts compiling a
+    function of this package; counts the compilations (:func:`compilations`)."""
+
+    said, count = False, 0
+
+    def on_start(self, ev) -> None:
+        if _CompileNotice.said:
+            return
+        fn = getattr(ev.data.get("dispatcher"), "py_func", None)
+        code = getattr(fn, "__code__", None)
+        if code is None or not Path(code.co_filename).resolve().is_relative_to(PACKAGE_DIR):
+            return
+        _CompileNotice.said = True
+        try:
+            sys.stderr.write(compile_notice(cache_is_cold(), CACHE) + "\n")
+            sys.stderr.flush()
+        except (OSError, ValueError):
+            pass
+
+    def on_end(self, ev) -> None:
+        _CompileNotice.count += 1
+
+
+event.register("numba:compile", _CompileNotice())
 
 
 def jit(fn=None, **options):

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from zrp_ga import checkpoint
+from zrp_ga import _numba, checkpoint
 from zrp_ga.algorithms import Algorithm, Callback, Result
 from zrp_ga.metrics import Judge
 
@@ -112,25 +112,43 @@ class ConvergenceLog(Callback):
         self._file.close()
 
 
+def time_left(first: tuple[float, float], now: tuple[float, float]) -> float | None:
+    """Seconds left from two (wall time s, fraction of the budget done) points, ``first`` and
+    ``now``, at the pace between them; None before there is a pace. :class:`Progress` takes as
+    ``first`` the end of the last generation in which numba compiled anything (or of the first
+    generation this process ran), so that compiling or loading the kernels does not count."""
+    (t0, f0), (t, f) = first, now
+    if f is None or f0 is None or not f0 < f < 1 or t <= t0:
+        return None
+    return (t - t0) * (1 - f) / (f - f0)
+
+
 class Progress(Callback):
     """A progress line (generation, evaluations, best cost, validation error, time left) at most
-    twice a second and at the end; rewritten in place on a terminal, one line each otherwise."""
+    twice a second and at the end; rewritten in place on a terminal, one line each otherwise.
+    The time left is estimated from the generations after the last that compiled code
+    (:func:`time_left`)."""
 
     def __init__(self, stream=None, every_s: float = 0.5):
         self.stream = stream or sys.stderr
         self.tty, self.every_s = self.stream.isatty(), every_s
         self._last, self._shown = -np.inf, None
+        self._first: tuple[float, float] | None = None
+        self._compiled = -1
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
         now = time.perf_counter()
+        done = algorithm.fraction_done()
+        if self._first is None or _numba.compilations() != self._compiled:  # the pace starts after compiling
+            self._first, self._compiled = (row["wall_s"], done), _numba.compilations()
         if algorithm.has_next() and now - self._last < self.every_s:
             return
         self._last, self._shown = now, row["gen"]
         text = (f"gen {row['gen']:5d}  evals {row['nevals']:8d}  best {row['best']:.6g}  "
                 f"val_rms {row.get('val_rms_mm', float('nan')):.4g} mm")  # fmt: skip
-        done = algorithm.fraction_done()
-        if done and 0 < done < 1:
-            text += f"  time left {row['wall_s'] * (1 - done) / done:6.1f} s"
+        left = time_left(self._first, (row["wall_s"], done))
+        if left is not None:
+            text += f"  time left {left:6.1f} s"
         self.stream.write(f"\r{text}\x1b[K" if self.tty else text + "\n")
         self.stream.flush()
 

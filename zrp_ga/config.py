@@ -341,7 +341,7 @@ class Config:
     seed: int = 0  # seeds numpy, `random` and the simulated problem (unless problem.seed is set)
     checkpoint_every: int = 10  # generations between checkpoints; 0: none
     resume: Optional[str] = None  # a run directory to continue from its checkpoint
-    progress: bool = True  # a progress line on the terminal (single runs)
+    progress: bool = True  # a progress line on stderr: a run's, and a sweep's with zrp_ga's launcher
     objective: Objective = Objective.final_cost  # what the run returns to a sweeper (zrp_ga.summary.objective)
 
 

@@ -253,11 +253,14 @@ def launch(launcher: Any, job_overrides: Sequence[Sequence[str]], initial_job_id
     todo = collections.deque((initial_job_idx + k, list(o)) for k, o in enumerate(job_overrides))
     dispatcher = _Dispatcher(launcher, pool, todo, sweep)
     try:
-        returns = dispatcher.run()
+        with dispatcher.progress.logging():
+            returns = dispatcher.run()
     except KeyboardInterrupt:
+        dispatcher.show_progress(close=True)
         pool.interrupt()
         dispatcher.write_table()
         raise
+    dispatcher.show_progress(close=True)
     dispatcher.write_table()
     return [returns[initial_job_idx + k] for k in range(len(job_overrides))]
 
@@ -270,11 +273,21 @@ class _Dispatcher:
         self.overrides = dict(todo)
         self.returns: dict[int, JobReturn] = {}
         self.table_at = time.monotonic()
+        from ._progress import SweepProgress
+
+        self.progress = SweepProgress(len(self.overrides), bool(launcher.config.get("progress", True)))
+
+    def show_progress(self, close: bool = False) -> None:
+        """The progress line (``_progress``): jobs ended, failed, running (a worker runs one at a time)."""
+        failed = sum(r.status == JobStatus.FAILED for r in self.returns.values())
+        running = sum(bool(w.batches) for w in self.pool.workers)
+        (self.progress.close if close else self.progress.show)(len(self.returns), failed, 0 if close else running)
 
     def run(self) -> dict[int, JobReturn]:
         for w in list(self.pool.workers):
             self.feed(w)
         while len(self.returns) < len(self.overrides):
+            self.show_progress()
             handles = {}
             for w in self.pool.workers:
                 handles[w.conn] = handles[w.process.sentinel] = w

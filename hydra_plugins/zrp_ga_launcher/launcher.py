@@ -6,7 +6,9 @@ once (forked from the sweep's process after it warmed up, where processes can be
 take jobs a batch at a time and run each with Hydra's ``run_job``: its own output directory,
 ``.hydra`` config record, log file, callbacks (the manifest line) and return value, as with
 Hydra's basic or joblib launcher. Job configs are composed from a few of Hydra's compositions
-(``_compose.py``, equal to Hydra's own).
+(``_compose.py``, equal to Hydra's own). While the jobs run, one line on stderr says how many are
+done, failed and running and the time left (``_progress.py``; on a terminal only, else a plain
+line a minute; none with ``progress=false``).
 
 This module is imported by Hydra's plugin discovery at every start of every Hydra app, so it
 imports nothing heavy; the work is in ``_workers`` and ``_compose`` (not scanned: names with
