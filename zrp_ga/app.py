@@ -24,7 +24,7 @@ from typing import Any
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
-from zrp_ga import config
+from zrp_ga import checks, config
 from zrp_ga.config import ConfigError
 
 log = logging.getLogger("zrp_ga")
@@ -83,6 +83,7 @@ def _build(cfg: DictConfig, out: Path | None, state: dict | None, reuse: bool = 
 
     if cfg.checkpoint_every < 0:
         raise ConfigError(f"checkpoint_every: must be >= 0, got {cfg.checkpoint_every}")
+    checks.run_settings(cfg)  # seeds, an optimiser's needs of the shared settings (zrp_ga.checks)
     with threadpool_limits(limits=1, user_api="blas"):  # the problem's SVDs: see execute
         key, task = _instance(cfg, reuse)
         algorithm = config.instantiate(cfg.algorithm, "algorithm")
