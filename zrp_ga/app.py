@@ -24,7 +24,7 @@ from typing import Any
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
-from zrp_ga import checks, config
+from zrp_ga import budget, checks, config
 from zrp_ga.config import ConfigError
 
 log = logging.getLogger("zrp_ga")
@@ -110,6 +110,7 @@ def _instance(cfg: DictConfig, reuse: bool) -> tuple[str, Any]:
     if reuse and key in _instances:
         return key, _instances[key]
     robot = config.instantiate(cfg.robot, "robot")
+    budget.check_config(cfg, robot)  # memory and time, before the problem is built (zrp_ga.budget)
     task = config.instantiate(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
     if reuse:
         _instances[key] = task
@@ -361,7 +362,7 @@ def cli() -> None:
     try:
         with compose_once(), group_options_once():
             main()
-    except (HydraException, OmegaConfBaseException, ValueError, OSError, Refused) as exc:
+    except (HydraException, OmegaConfBaseException, ValueError, OSError, MemoryError, Refused) as exc:
         if full:
             raise
         print(f"zrp-ga: error: {one_line(getattr(exc, 'error', exc))}", file=sys.stderr)

@@ -146,6 +146,8 @@ class Prepare(Callback):
             app.prepare(config, Path(config.hydra.run.dir))
         except (ValueError, OSError) as exc:
             raise Refused(exc) from None
+        except MemoryError as exc:  # not a warning, and not the work again (zrp_ga.budget's estimate missed)
+            raise Refused(MemoryError(f"out of memory before the run started ({exc}); see zrp_ga.budget")) from None
 
 
 class Manifest(Callback):

@@ -23,12 +23,13 @@ ignored until a convention is stated.
 angles in rad, positions in mm, orientations in degrees, intrinsic XYZ Euler).
 
 Every problem in a file is one ValueError naming the file, the line (as a text editor counts,
-the header being line 1) and the column: a missing or unreadable file, a missing column, a cell
+the header being line 1) and the column: a missing or unreadable file, no regular file (a FIFO,
+a device: :func:`zrp_ga.files.regular_file`), a column name given twice, a missing column, a cell
 that is empty, not a number, not finite or absurd (a length beyond 1e4 m, an angle beyond 100
 rad, a joint value beyond any turn of the arm, a standard deviation <= 0), a point far outside
 the arm's reach, rows that repeat earlier rows exactly. Rows with a bad cell and repeated rows
 stop the reading unless ``drop_bad_rows`` is set, in which case they are dropped and listed in
-the warning.
+the warning. Validation data that repeats calibration rows is named (:func:`check_shared`).
 """
 
 from __future__ import annotations
