@@ -22,8 +22,8 @@ positions, 6 with orientations), M calibration and V validation poses, ``R = r M
 All of it times 1.25 for what the sum leaves out (measured peaks, tracemalloc: 0.9 to 1.3 of the
 sum on simulated, measured and 200-joint runs, tests/test_bad_inputs_more.py).
 
-The time estimate adds the Jacobians (``2e-7 s`` per pose and gene), the SVDs and their
-null-space bookkeeping (``1.2e-8 s K^3`` plus ``1e-8 s R K^2``), the cost evaluations
+The time estimate adds the Jacobians (``1.5e-5 s`` per pose and gene), the SVDs, least squares
+and null-space bookkeeping (``1.2e-8 s K^3`` plus ``5e-8 s R K min(R, K)``), the cost evaluations
 (``3e-8 s`` per evaluation, pose and joint, or per row and gene for the linear cost, plus
 ``3e-4 s`` for DEAP's handling of the individual) and the file reading (``2e-4 s`` per row), constants measured on a loaded 2-core machine (a 500-joint
 arm: 400 s; a 100 000-row file: 130 s). It is said, not enforced.
@@ -34,7 +34,7 @@ allow a run the estimate overrates or to keep a shared machine's runs smaller.
 
 >>> s = Size(joints=6, genes=42, poses=30, validation=100, rows_per_pose=6, population=40, evaluations=460)
 >>> round(memory(s) / 1e6, 1), round(seconds(s), 1)
-(2.0, 0.1)
+(2.0, 0.2)
 """
 
 from __future__ import annotations
@@ -57,9 +57,9 @@ INDIVIDUAL_BYTES = 600  # a DEAP individual's objects beside its genes
 MARGIN = 1.25  # for what the sum leaves out (Python objects, short-lived copies): measured peaks were 0.9-1.3 of it
 INDIVIDUAL_S = 3e-4  # per evaluation: DEAP's copying, selection and variation of an individual
 FILE_ROW_S = 2e-4
-JACOBIAN_S = 2e-7  # per pose and gene
+JACOBIAN_S = 1.5e-5  # per pose and gene: every Jacobian of a run (problem, ranges, projector, judge)
 SVD_S = 1.2e-8  # per K^3
-ROWS_S = 1e-8  # per R K^2
+ROWS_S = 5e-8  # per R K min(R, K): SVDs and least squares of the stacked Jacobian
 EVAL_S = 3e-8  # per evaluation, pose and joint (or row and gene)
 SAMPLE_BYTES = 64 * 1024  # of a file, read to estimate its rows
 LONG_S = 600  # a run estimated to take longer is announced
@@ -117,7 +117,7 @@ def seconds(s: Size) -> float:
     """Seconds the run takes, roughly (module docstring); without a known number of
     evaluations, the time before the optimiser's."""
     K, n, R = s.genes, s.joints, s.rows
-    t = JACOBIAN_S * (s.poses + s.validation) * K + SVD_S * K**3 + ROWS_S * R * K * K
+    t = JACOBIAN_S * (s.poses + s.validation) * K + SVD_S * K**3 + ROWS_S * R * K * min(R, K)
     t += FILE_ROW_S * sum(s.cells) / max(n + 3, 1)
     if s.evaluations:
         t += s.evaluations * (INDIVIDUAL_S + EVAL_S * (s.subset * K * K if s.subset else max(s.poses * n, R * K / 30)))
@@ -130,7 +130,7 @@ def _slowest(s: Size) -> str:
     K = s.genes
     parts = {
         "parameters": SVD_S * K**3,
-        "poses": JACOBIAN_S * s.poses * K + ROWS_S * s.rows * K * K + FILE_ROW_S * s.cells[0] / (s.joints + 3),
+        "poses": JACOBIAN_S * s.poses * K + ROWS_S * s.rows * K * min(s.rows, K) + FILE_ROW_S * s.cells[0] / (s.joints + 3),
     }
     parts["population"] = seconds(s) - sum(parts.values())
     return max(parts, key=parts.get)
@@ -203,12 +203,14 @@ def check(s: Size, lower: dict[str, tuple[str, str]], available: float | None = 
     parts = memory_parts(s)
     need, have = sum(parts.values()), available_bytes() if available is None else available
     t = seconds(s)
-    said = f"about {_human(need)} of memory ({_human(have)} available) and {_duration(t)}"
     if need <= have:
+        memory_said = f"{_human(need)} of memory, {_human(have)} available"
         if t > LONG_S:  # said on the console before the run starts, so that it can be stopped at once
-            log.warning("this run will take %s (%s); to go faster: %s", _duration(t), said, lower[_slowest(s)][1])
+            log.warning(
+                "this run will take about %s (and %s); to go faster: %s", _duration(t), memory_said, lower[_slowest(s)][1]
+            )
         else:
-            log.debug("size: %s", said)
+            log.debug("size: about %s and %s", _duration(t), memory_said)
         return
     top = max(parts, key=parts.get)
     shares = ", ".join(f"{k} {_human(v)}" for k, v in sorted(parts.items(), key=lambda kv: -kv[1]) if v >= 0.01 * need)
