@@ -155,21 +155,21 @@ def test_memory_estimate_bounds_the_measured_peak(tmp_path):
     built, diagnosed and optimised), and not wildly more."""
     import tracemalloc
 
-    from zrp_ga import app
+    import zrp_ga
 
-    for over in (["problem=multipose", "problem.n_poses=1500", "population.generations=2"],
-                 ["robot=file", f"robot.file={tmp_path / 'arm.yaml'}", "population.generations=1", "problem.n_validation=20"]):  # fmt: skip
-        (tmp_path / "arm.yaml").write_text(_arm(60))
-        cfg = app._task_config(config.load([*over, "progress=false", "checkpoint_every=0"]))
-        robot = config.instantiate(cfg.robot, "robot")
-        size, _ = budget.of_config(cfg, robot.n)
+    (tmp_path / "arm.yaml").write_text(_arm(60))
+    for robot, settings in (("puma560", {"problem": {"n_poses": 1500}, "population": {"generations": 2}}),
+                            (tmp_path / "arm.yaml", {"problem": {"n_validation": 20}, "population": {"generations": 1}})):  # fmt: skip
+        over = [f"robot.{'name' if robot == 'puma560' else 'file'}={robot}"]
+        over += [f"{k}.{key}={value}" for k, d in settings.items() for key, value in d.items()]
+        size, _ = budget.of_config(config.load(over), robots.load(**({"name": robot} if robot == "puma560" else {"file": str(robot)})).n)
         tracemalloc.start()
         try:
-            app.execute(app._build(cfg, None, None), None, False)
+            zrp_ga.calibrate(robot, **settings)
             peak = tracemalloc.get_traced_memory()[1]
         finally:
             tracemalloc.stop()
-        assert peak <= budget.memory(size) <= 4 * peak, (over, peak, budget.memory(size))
+        assert peak <= budget.memory(size) <= 4 * peak, (robot, peak, budget.memory(size))
 
 
 def test_a_refusal_names_the_largest_part_and_its_setting():
