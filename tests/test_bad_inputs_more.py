@@ -284,3 +284,22 @@ def test_a_run_whose_final_cost_is_null_is_left_out_by_name(tmp_path):
     (tmp_path / "convergence.csv").write_text("gen,nevals,best\n0,5,0.2\n1,10,0.1\n")
     found, left = runs.find_runs([tmp_path])
     assert found == [] and left == [(str(tmp_path), "summary.json: 'final_cost' is null, not a finite number")]
+
+
+@pytest.mark.slow
+def test_out_of_memory_while_preparing_is_one_line_and_not_done_twice(tmp_path):
+    """When the estimate is overridden (``ZRP_GA_MEMORY``) and memory runs out while the run is
+    prepared, the MemoryError is one line, exit code 2, no run directory: not a Hydra warning
+    followed by the same work again (4 GB of address space for ten-fold the poses it holds)."""
+    import resource
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30))
+
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem=multipose", "problem.n_poses=3000000", "progress=false",
+                           f"hydra.run.dir={tmp_path}/run"], capture_output=True, text=True, cwd=tmp_path, preexec_fn=limit,
+                          env={**os.environ, "ZRP_GA_MEMORY": "100G"}, timeout=1200)  # fmt: skip
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+    assert lines[0].startswith("zrp-ga: error: out of memory before the run started (Unable to allocate")
+    assert not (tmp_path / "run").exists()
