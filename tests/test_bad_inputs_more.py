@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import re
 import subprocess
@@ -262,28 +263,37 @@ def test_checks_name_their_keys():
         config.section(config.MeasuredConf, {"calibration_file": "a", "validation_file": "b", "validation_fraction": 0.2}, "problem")
 
 
-# --- the report: non-finite values -------------------------------------------------------------------
-@pytest.mark.parametrize("value", ["-inf", "inf", "nan"])
-def test_a_run_with_a_non_finite_cost_is_left_out_by_name(tmp_path, value):
+# --- the report: values that are no cost ----------------------------------------------------------------
+def _fake_run(run: Path, best: str, final: float | None = 0.1, first: str = "0.2") -> None:
+    run.mkdir()
+    (run / "summary.json").write_text(json.dumps({"instance": "x", "nevals": 10, "final_cost": final}))
+    (run / "convergence.csv").write_text(f"gen,nevals,best\n0,5,{first}\n1,10,{best}\n")
+
+
+@pytest.mark.parametrize("value", ["-inf", "nan", "-0.5"])
+def test_a_run_with_a_cost_that_is_none_is_left_out_by_name(tmp_path, value):
+    """-inf would reach every target, NaN none, and neither nor a negative number is a cost (a
+    norm); the app never writes them (its best starts at +inf and takes finite costs only)."""
     from zrp_ga.report import runs
 
-    for name, last in (("good", "0.1"), ("bad", value)):
-        run = tmp_path / name
-        run.mkdir()
-        (run / "summary.json").write_text(json.dumps({"instance": "x", "nevals": 10, "final_cost": 0.1}))
-        (run / "convergence.csv").write_text(f"gen,nevals,best\n0,5,0.2\n1,10,{last}\n")
+    _fake_run(tmp_path / "good", "0.1")
+    _fake_run(tmp_path / "bad", value)
     found, left = runs.find_runs([tmp_path])
     assert [r.path.name for r in found] == ["good"]
-    assert left == [(str(tmp_path / "bad"), f"convergence.csv line 3: best is '{value}', not a finite number")]
+    why = f"convergence.csv line 3: best is '{value}', not a cost (a cost is >= 0, or inf when diverged)"
+    assert left == [(str(tmp_path / "bad"), why)]
 
 
-def test_a_run_whose_final_cost_is_null_is_left_out_by_name(tmp_path):
-    from zrp_ga.report import runs
+def test_a_diverged_run_is_kept_as_reaching_nothing_and_a_nan_final_cost_left_out(tmp_path):
+    """+inf is what a diverged run writes (no finite cost seen): it counts, reaching no target
+    (tests/test_report_benchmark.py ranks it); a final cost of NaN is left out by name."""
+    from zrp_ga.report import runs, targets
 
-    (tmp_path / "summary.json").write_text(json.dumps({"instance": "x", "nevals": 10, "final_cost": None}))
-    (tmp_path / "convergence.csv").write_text("gen,nevals,best\n0,5,0.2\n1,10,0.1\n")
+    _fake_run(tmp_path / "diverged", "inf", final=None, first="inf")
+    _fake_run(tmp_path / "nan", "0.1", final=float("nan"))
     found, left = runs.find_runs([tmp_path])
-    assert found == [] and left == [(str(tmp_path), "summary.json: 'final_cost' is null, not a finite number")]
+    assert [r.path.name for r in found] == ["diverged"] and math.isinf(targets.first_hit(found[0].evals, found[0].best, 1e9))
+    assert left == [(str(tmp_path / "nan"), "summary.json: 'final_cost' is nan")]
 
 
 @pytest.mark.slow
