@@ -30,7 +30,7 @@ def _report_rows(folder: Path) -> list[tuple[str, str, str, str]]:
     (folder / "afile").write_text("x")
     subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem.n_validation=5", "population.generations=2", "progress=false",
                     f"hydra.run.dir={folder / 'runs' / 'good'}"], check=True, capture_output=True)  # fmt: skip
-    for name, last in (("broken", "0."), ("diverged", "-inf\n")):
+    for name, last in (("broken", "0."), ("minus-inf", "-inf\n")):
         run = folder / "runs" / name
         run.mkdir(parents=True)
         (run / "summary.json").write_text('{"instance": "x", "nevals": 10, "final_cost": 0.1}')
@@ -45,7 +45,7 @@ def _report_rows(folder: Path) -> list[tuple[str, str, str, str]]:
         out = (proc.stderr.strip() or proc.stdout.strip()).splitlines()
         said = [x for x in out if "error" in x or "left out" in x] or out[:1]
         for line in said:
-            if "diverged" in line:  # the run beside the truncated one
+            if "minus-inf" in line:  # the run beside the truncated one
                 kind, what = "non-finite number", "a run whose convergence.csv holds -inf (left out, named, the rest go on)"
             rows.append((kind, what, "zrp-ga-report " + " ".join(args), line))
     return rows
