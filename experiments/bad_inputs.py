@@ -1,6 +1,6 @@
 """Write docs/bad_inputs.md: every class of bad input, an example command, and the one line the
-program prints for it, by running the cases of tests/test_bad_inputs.py (``zrp-ga``) and a few
-of ``zrp-ga-report``.
+program prints for it, by running the cases of tests/test_bad_inputs.py and
+tests/test_bad_inputs_more.py (``zrp-ga``) and a few of ``zrp-ga-report``.
 
     python experiments/bad_inputs.py
 """
@@ -16,8 +16,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _cases():
-    spec = importlib.util.spec_from_file_location("test_bad_inputs", ROOT / "tests" / "test_bad_inputs.py")
+def _cases(name: str = "test_bad_inputs"):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "tests" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # dataclasses look their module up
     spec.loader.exec_module(module)
@@ -25,14 +25,16 @@ def _cases():
 
 
 def _report_rows(folder: Path) -> list[tuple[str, str, str, str]]:
-    """zrp-ga-report on a missing folder, on a file, and on a good run beside a truncated one."""
+    """zrp-ga-report on a missing folder, on a file, and on a good run beside a truncated one and
+    one holding a cost of -inf."""
     (folder / "afile").write_text("x")
     subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem.n_validation=5", "population.generations=2", "progress=false",
                     f"hydra.run.dir={folder / 'runs' / 'good'}"], check=True, capture_output=True)  # fmt: skip
-    run = folder / "runs" / "broken"
-    run.mkdir(parents=True)
-    (run / "summary.json").write_text('{"instance": "x", "nevals": 10, "final_cost": 0.1}')
-    (run / "convergence.csv").write_text("gen,nevals,best\n0,5,0.2\n1,10,0.")
+    for name, last in (("broken", "0."), ("minus-inf", "-inf\n")):
+        run = folder / "runs" / name
+        run.mkdir(parents=True)
+        (run / "summary.json").write_text('{"instance": "x", "nevals": 10, "final_cost": 0.1}')
+        (run / "convergence.csv").write_text(f"gen,nevals,best\n0,5,0.2\n1,10,{last}")
     rows = []
     for kind, what, args in (("missing path", "a report input that does not exist", ["nothere"]),
                              ("wrong kind of path", "a file given as a run folder", ["afile"]),
@@ -41,29 +43,37 @@ def _report_rows(folder: Path) -> list[tuple[str, str, str, str]]:
         proc = subprocess.run([sys.executable, "-m", "zrp_ga.report", *args, "--out", "rep", "--formats", "none"],
                               capture_output=True, text=True, cwd=folder)  # fmt: skip
         out = (proc.stderr.strip() or proc.stdout.strip()).splitlines()
-        line = next((x for x in out if "error" in x or "left out" in x), out[0] if out else "")
-        rows.append((kind, what, "zrp-ga-report " + " ".join(args), line))
+        said = [x for x in out if "error" in x or "left out" in x] or out[:1]
+        for line in said:
+            if "minus-inf" in line:  # the run beside the truncated one
+                kind, what = "non-finite number", "a run whose convergence.csv holds -inf (left out, named, the rest go on)"
+            rows.append((kind, what, "zrp-ga-report " + " ".join(args), line))
     return rows
 
 
 def main() -> None:
-    module = _cases()
+    cases = [(module, case) for module in (_cases(), _cases("test_bad_inputs_more")) for case in module.CASES]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for k, case in enumerate(module.CASES):
+        for k, (module, case) in enumerate(cases):
             folder = Path(tmp) / str(k)
             proc = module.run_case(case, folder)
             line = proc.stderr.strip().replace(str(folder), "DIR")
-            args = " ".join(a.replace("{dir}", "DIR") for a in case.args)
-            rows.append((case.kind, case.what, f"zrp-ga {args}", f"{line} (exit {proc.returncode})"))
+            args = " ".join([*(f"{k}={v}" for k, v in getattr(case, "env", ())), "zrp-ga",
+                             *(a.replace("{dir}", "DIR") for a in case.args)])  # fmt: skip
+            rows.append((case.kind, case.what, args, f"{line} (exit {proc.returncode})"))
         report = Path(tmp) / "report"
         report.mkdir()
         rows += [(k, w, c, line.replace(str(report), "DIR")) for k, w, c, line in _report_rows(report)]
     lines = ["# Bad input and what the program says", "",
              "Every input the programs read is checked before any work: a bad one stops `zrp-ga` with one line "
              "on stderr, exit code 2, and no run directory (a report leaves out a damaged run by name and goes on). "
+             "Every file read must be a regular file (a FIFO, device or socket is refused, a symlink loop named as "
+             "one). A run that would not fit the memory this machine has available is refused with the estimate "
+             "and the setting to lower (`zrp_ga.budget`; the environment variable `ZRP_GA_MEMORY`, e.g. `8G`, "
+             "replaces the available amount); one estimated to take more than ten minutes is announced. "
              "`DIR` stands for the folder of the example. Written by `python experiments/bad_inputs.py` from the "
-             "cases of `tests/test_bad_inputs.py`, which check each of them.", "",
+             "cases of `tests/test_bad_inputs.py` and `tests/test_bad_inputs_more.py`, which check each of them.", "",
              "| class | example | command | what it prints |", "| --- | --- | --- | --- |"]  # fmt: skip
     for kind, what, command, line in rows:
         cell = lambda t: t.replace("|", "\\|")

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from zrp_ga.files import regular_file
+
 
 def save(path: str | Path, state: dict) -> None:
     """Write ``state``: its numpy arrays as arrays, the rest (JSON-able) as JSON."""
@@ -27,9 +29,7 @@ def save(path: str | Path, state: dict) -> None:
 
 def load(path: str | Path) -> dict:
     """The state :func:`save` wrote; ValueError (one line) if the file is missing or corrupt."""
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no checkpoint there" + (" (a directory)" if path.is_dir() else ""))
+    path = regular_file(path, "a checkpoint file", missing="no checkpoint there")
     try:
         with np.load(path, allow_pickle=False) as data:
             state = json.loads(str(data["__json__"]))

@@ -220,6 +220,9 @@ class SimulatedConf(ProblemConf):
         super().check(key)
         _require(self.n_poses >= 1, f"{key}.n_poses", "at least 1", self.n_poses)
         _require(self.n_validation >= 0, f"{key}.n_validation", "at least 0", self.n_validation)
+        from zrp_ga import checks
+
+        checks.seed(self.seed, f"{key}.seed")
         for name in ("joint_noise", "position_noise", "orientation_noise"):
             value = getattr(self, name)
             _require(math.isfinite(value) and value >= 0, f"{key}.{name}", "a number >= 0", value)
@@ -258,6 +261,9 @@ class MeasuredConf(ProblemConf):
             raise ConfigError(f"{key}.calibration_file: a measured problem needs a file")
         f = self.validation_fraction
         _require(f is None or 0.0 < f < 1.0, f"{key}.validation_fraction", "in (0, 1) or null", f)
+        from zrp_ga import checks
+
+        checks.validation_sources(self.validation_file, f, key)
         _require(self.length_unit in ("m", "mm", "auto"), f"{key}.length_unit", "m, mm or auto", self.length_unit)
         _require(self.angle_unit in ("rad", "deg", "auto"), f"{key}.angle_unit", "rad, deg or auto", self.angle_unit)
         from zrp_ga.measurements import check_convention
@@ -308,6 +314,9 @@ class PoseSelectionConf(MeasuredConf):
         _require(s is None or (math.isfinite(s) and s > 0.0), f"{key}.length_scale", "a length > 0 (m) or null", s)
         f = self.validation_fraction
         _require(f is None or 0.0 < f < 1.0, f"{key}.validation_fraction", "in (0, 1) or null", f)
+        from zrp_ga import checks
+
+        checks.validation_sources(self.validation_file, f, key)
         if not self.calibration_file:
             _require(self.n_candidates > self.k, f"{key}.n_candidates", f"more than problem.k = {self.k}", self.n_candidates)
             _require(self.n_validation >= 1, f"{key}.n_validation", "at least 1", self.n_validation)

@@ -325,7 +325,7 @@ def identifiability(
     rank = int(np.sum(s > tol))
     N = Vt[rank:].T  # (K, d) orthonormal null basis
     candidates = _known_null_directions(robot, names) if robot is not None else []
-    candidates += [(f"{name} has no effect", np.eye(K)[k]) for k, name in enumerate(names)]
+    candidates += [(f"{name} has no effect", e) for e, name in zip(np.eye(K), names)]  # rows of one (K, K): not K of them
     named, basis = [], np.zeros((K, 0))
     for label, v in candidates:
         if N.shape[1] == basis.shape[1]:

@@ -23,12 +23,13 @@ ignored until a convention is stated.
 angles in rad, positions in mm, orientations in degrees, intrinsic XYZ Euler).
 
 Every problem in a file is one ValueError naming the file, the line (as a text editor counts,
-the header being line 1) and the column: a missing or unreadable file, a missing column, a cell
+the header being line 1) and the column: a missing or unreadable file, no regular file (a FIFO,
+a device: :func:`zrp_ga.files.regular_file`), a column name given twice, a missing column, a cell
 that is empty, not a number, not finite or absurd (a length beyond 1e4 m, an angle beyond 100
 rad, a joint value beyond any turn of the arm, a standard deviation <= 0), a point far outside
 the arm's reach, rows that repeat earlier rows exactly. Rows with a bad cell and repeated rows
 stop the reading unless ``drop_bad_rows`` is set, in which case they are dropped and listed in
-the warning.
+the warning. Validation data that repeats calibration rows is named (:func:`check_shared`).
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from zrp_ga.files import as_path, regular_file
 from zrp_ga.robot import MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
 
 Array = NDArray[np.float64]
@@ -189,7 +191,7 @@ class Measurements:
 def read(path: str | Path, fmt: Format, robot: ZRPRobot, drop_bad_rows: bool = False) -> Measurements:
     """Read a measurement file for ``robot`` (its joint types decide the joint units, its reach
     the checks and ``auto`` units); ValueError naming file, line and column for anything wrong."""
-    path = Path(path)
+    path = as_path(path, "measurement data", " or, for data in memory, zrp_ga.measurements.Measurements(q, p) with joint values q (M, n) in rad and positions p (M, 3) in m")
     _check_units(path, fmt)
     raw, lines = _table(path, fmt)
     columns = _columns(path, raw, fmt, robot.n)
@@ -216,17 +218,16 @@ def _table(path: Path, fmt: Format):
     are dropped after counting them."""
     import pandas as pd
 
-    if not path.exists():
-        raise ValueError(f"{path}: no such file")
-    if path.is_dir():
-        raise ValueError(f"{path}: is a directory, expected a measurement file (.csv)")
+    regular_file(path, "a measurement file (.csv)")
     try:
         with open(path, "rb") as f:
             head = f.read(4096)
+            header = head.split(b"\n", 1)[0] + (b"" if b"\n" in head else f.readline())
     except OSError as exc:
         raise ValueError(f"{path}: cannot read ({exc.strerror or exc})") from None
     if b"\0" in head:
         raise ValueError(f"{path}: not a text file")
+    _check_header(path, header, fmt.sep)
     try:
         raw = pd.read_csv(path, sep=fmt.sep, dtype=str, keep_default_na=False, skip_blank_lines=False)
     except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
@@ -235,6 +236,23 @@ def _table(path: Path, fmt: Format):
     lines = np.arange(len(raw)) + 2  # the header is line 1
     filled = (raw.apply(lambda col: col.str.strip()) != "").any(axis=1).to_numpy() if len(raw) else np.zeros(0, bool)
     return raw[filled].reset_index(drop=True), lines[filled]
+
+
+def _check_header(path: Path, header: bytes, sep: str) -> None:
+    """Column names that appear more than once (a controller's x, y, z beside a tracker's):
+    which copy is meant cannot be told, so the file is refused naming them and their columns."""
+    import csv
+
+    names = [c.strip() for c in next(csv.reader([header.decode("utf-8", "replace").rstrip("\r\n")], delimiter=sep), [])]
+    seen: dict[str, list[int]] = {}
+    for k, name in enumerate(names, start=1):
+        if name:
+            seen.setdefault(name, []).append(k)
+    twice = {name: cols for name, cols in seen.items() if len(cols) > 1}
+    if twice:
+        listed = "; ".join(f"{name!r} in columns {', '.join(map(str, cols))}" for name, cols in twice.items())
+        raise ValueError(f"{path}, line 1: duplicate column names ({listed}); which copy to use cannot be told: "
+                         "rename or remove all but one")  # fmt: skip
 
 
 def _columns(path: Path, raw, fmt: Format, n: int) -> list[str]:
@@ -304,8 +322,9 @@ def resolve_length_unit(path: Path, points: Array, robot: ZRPRobot, unit: str) -
     distance from the median point, so that absurd cells in fewer than half of the rows do not
     decide it; they are refused later, by line and column); a calibration's spread over more
     than 1% of the reach. ``auto`` takes the one unit in which both hold (none or both: an
-    error asking for the unit); a stated unit in which the points spread too far is an error
-    naming the unit that would fit."""
+    error asking for the unit); a stated unit in which the points spread too far, or too little
+    while the other unit fits (metres read as millimetres), is an error naming the unit that
+    would fit."""
     if len(points) < 2:
         return "m" if unit == AUTO else unit
     spread = 2.0 * float(np.median(np.linalg.norm(points - np.median(points, axis=0), axis=1)))
@@ -320,6 +339,9 @@ def resolve_length_unit(path: Path, points: Array, robot: ZRPRobot, unit: str) -
     if unit not in within:
         hint = f" (problem.length_unit={fits[0]}?)" if fits else ""
         raise ValueError(f"{where}: they cannot be in {unit}{hint}")
+    if unit not in fits and fits:  # e.g. metres with mm stated: a few millimetres of spread
+        raise ValueError(f"{where}: in {unit} they would spread over {spread * LENGTH[unit] * 1e3:.3g} mm, less than 1% of "
+                         f"its reach; they cannot be in {unit} (problem.length_unit={fits[0]}?)")  # fmt: skip
     return unit
 
 
@@ -449,6 +471,35 @@ def _measurements(fmt: Format, robot: ZRPRobot, columns: list[str], values: Arra
         index = {name: k for k, name in enumerate(names)}
         tool = np.array([index[t] for t in tools], dtype=np.int64)
     return Measurements(q, p, R, std=std, source=source, lines=lines, tool=tool, tool_names=names, units=u.names[:2])
+
+
+def shared_rows(calib: Measurements, val: Measurements) -> list[tuple[int, int]]:
+    """(validation line, calibration line) of every validation row that repeats a calibration
+    row exactly: the same joint values, point and tool (SI units, as read)."""
+
+    def key(m: Measurements, k: int) -> bytes:
+        tool = m.tool_names[m.tool[k]] if m.tool is not None else ""
+        return m.q[k].tobytes() + m.p[k].tobytes() + str(tool).encode()
+
+    first = {}
+    for k in range(calib.M):
+        first.setdefault(key(calib, k), int(calib.lines[k]))
+    return [(int(val.lines[k]), first[key(val, k)]) for k in range(val.M) if key(val, k) in first]
+
+
+def check_shared(calib: Measurements, val: Measurements) -> list[str]:
+    """Validation data that is the calibration data again: refused when every row repeats a
+    calibration row (the same file given twice: its errors would be called errors on unseen
+    poses), a warning naming the rows when some do."""
+    pairs = shared_rows(calib, val)
+    if not pairs:
+        return []
+    shown = ", ".join(f"{v} = {c}" for v, c in pairs[:5]) + (", ..." if len(pairs) > 5 else "")
+    what = f"of the validation data {val.source} repeat rows of the calibration data {calib.source} (lines {shown})"
+    if len(pairs) == val.M:
+        raise ValueError(f"problem.validation_file: all {val.M} rows {what}: its errors would not be on unseen poses; give "
+                         "other measurements, or problem.validation_fraction to hold out part of the calibration file")  # fmt: skip
+    return [f"{len(pairs)} of the {val.M} rows {what}: the validation error is partly on poses the calibration saw"]
 
 
 def split(data: Measurements, fraction: float, rng: np.random.Generator) -> tuple[Measurements, Measurements]:

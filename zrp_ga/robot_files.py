@@ -54,6 +54,7 @@ from scipy.spatial.transform import Rotation
 
 from zrp_ga import records, so3
 from zrp_ga.dh import CONVENTIONS, DHMismatch, DHTable, to_dh
+from zrp_ga.files import regular_file
 from zrp_ga.robot import DEFAULT_LIMITS, MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
 from zrp_ga.urdf import check_transform, read_urdf, to_urdf
 
@@ -97,11 +98,7 @@ def read_dh(path: str | Path) -> DHTable:
 
 
 def _read_text(path: str | Path) -> tuple[Path, str]:
-    path = Path(path)
-    if not path.exists():
-        raise ValueError(f"{path}: no such file")
-    if path.is_dir():
-        raise ValueError(f"{path}: is a directory, expected a robot file (.yaml, .yml or .urdf)")
+    path = regular_file(path, "a robot file (.yaml, .yml or .urdf)")
     try:
         return path, path.read_text(encoding="utf-8")
     except UnicodeDecodeError:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from zrp_ga import checks
 from zrp_ga.algorithms import Algorithm, Result
 from zrp_ga.config import ConfigError, PopulationConf, section
 
@@ -14,6 +15,7 @@ class CMAES(Algorithm):
     def __init__(self, population, sigma0: float) -> None:
         super().__init__()
         self.pop_conf: PopulationConf = section(PopulationConf, population, "population")
+        checks.cmaes_population(self.pop_conf.lambda_)
         if not (np.isfinite(sigma0) and sigma0 > 0):
             raise ConfigError(f"algorithm.sigma0: must be a number > 0, got {sigma0}")
         self.sigma0 = sigma0

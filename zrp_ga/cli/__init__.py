@@ -70,7 +70,7 @@ def cli() -> None:
     _register_launcher()
     try:
         main()
-    except (HydraException, OmegaConfBaseException, ValueError, OSError, Refused) as exc:
+    except (HydraException, OmegaConfBaseException, ValueError, OSError, MemoryError, Refused) as exc:
         if full:
             raise
         print(f"zrp-ga: error: {one_line(getattr(exc, 'error', exc))}", file=sys.stderr)

@@ -40,6 +40,8 @@ class Prepare(Callback):
             build.prepare(config, Path(config.hydra.run.dir), list(config.hydra.overrides.task))
         except (ValueError, OSError) as exc:
             raise Refused(exc) from None
+        except MemoryError as exc:  # not a warning, and not the work again (zrp_ga.budget's estimate missed)
+            raise Refused(MemoryError(f"out of memory before the run started ({exc}); see zrp_ga.budget")) from None
 
 
 def _ours(hydra: DictConfig) -> bool:

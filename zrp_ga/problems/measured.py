@@ -166,11 +166,12 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
         val = val.with_tool_names(names + tuple(known))
         if c.validation_registration.value == "rigid" and val.M < 3:
             raise ValueError(f"problem.validation_registration: rigid needs at least 3 validation points, {val.source} has {val.M}")
+    shared = measurements.check_shared(calib, val) if val is not None else []  # the same rows again: refused or named
     if not underdetermined:
         _check_enough(robot, len(names), calib, bool(c.use_orientation))
     reg = register(robot, calib.q, calib.p, rotations=calib.R if c.use_orientation else None, tools=calib.tool,
                    tool_names=names)  # fmt: skip
-    warnings = _registration_warnings(robot, reg, calib)
+    warnings = shared + _registration_warnings(robot, reg, calib)
     nominal = reg.apply(robot)
     fixed_info: dict[str, Any] = {}
     layout = masked(c, Layout(robot.n, base=True, hand=bool(c.use_orientation), tools=tuple(map(tuple, reg.tools[1:] - reg.tool)),

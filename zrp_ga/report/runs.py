@@ -109,7 +109,7 @@ def read_summary(path: Path) -> dict[str, Any]:
     checks = {
         "instance": lambda v: isinstance(v, str) and v != "",
         "nevals": lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0,
-        "final_cost": lambda v: v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)),
+        "final_cost": lambda v: v is None or (isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0),
     }
     for key, ok in checks.items():
         if key not in summary:
@@ -123,8 +123,10 @@ def read_summary(path: Path) -> dict[str, Any]:
 
 
 def read_convergence(path: Path) -> pd.DataFrame:
-    """``convergence.csv`` checked whole: every line complete, the needed columns numeric,
-    evaluations non-decreasing. LeftOut names the first line that is not."""
+    """``convergence.csv`` checked whole: every line complete, the needed columns numbers,
+    evaluations finite and non-decreasing, costs >= 0 or +inf (a diverged run: it reaches no
+    target). A cost of -inf (it would reach every target), a negative one or NaN is no cost: the
+    run is left out, named, not read around. LeftOut names the first line that is not."""
     try:
         text = (path / "convergence.csv").read_text()
     except (OSError, UnicodeDecodeError) as exc:
@@ -152,8 +154,10 @@ def read_convergence(path: Path) -> pd.DataFrame:
                 values[line - 2] = float(row[k])  # float() reads 'inf' and 'nan', which a diverged run writes
             except ValueError:
                 raise LeftOut(f"convergence.csv line {line}: {column} is {row[k]!r}") from None
-            if column != "best" and not math.isfinite(values[line - 2]):
-                raise LeftOut(f"convergence.csv line {line}: {column} is {row[k]!r}")
+            value = values[line - 2]
+            if (column != "best" and not math.isfinite(value)) or math.isnan(value) or value < 0:
+                what = "not a finite number" if column != "best" else "not a cost (a cost is >= 0, or inf when diverged)"
+                raise LeftOut(f"convergence.csv line {line}: {column} is {row[k]!r}, {what}")
         conv[column] = values
     if (np.diff(conv["nevals"].to_numpy()) < 0).any():
         line = int(np.argmax(np.diff(conv["nevals"].to_numpy()) < 0)) + 3

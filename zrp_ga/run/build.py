@@ -18,7 +18,7 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from zrp_ga import config
+from zrp_ga import budget, checks, config
 from zrp_ga.config import ConfigError
 from zrp_ga.problems.protocol import SelfJudging
 from zrp_ga.run import directory
@@ -75,6 +75,7 @@ def build(cfg: DictConfig, out: Path | None, state: dict | None, choices: dict, 
 
     if cfg.checkpoint_every < 0:
         raise ConfigError(f"checkpoint_every: must be >= 0, got {cfg.checkpoint_every}")
+    checks.run_settings(cfg)  # seeds, an optimiser's needs of the shared settings (zrp_ga.checks)
     with threadpool_limits(limits=1, user_api="blas"):  # the problem's SVDs: see zrp_ga.run.execute
         key = instance_key(cfg)
         if task is None:
@@ -95,6 +96,7 @@ def instance_key(cfg: DictConfig) -> str:
 
 def _instance(cfg: DictConfig) -> Any:
     robot = config.instantiate(cfg.robot, "robot")
+    budget.check_config(cfg, robot)  # memory and time, before the problem is built (zrp_ga.budget)
     return config.instantiate(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
 
 
