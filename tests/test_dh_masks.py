@@ -122,7 +122,9 @@ def test_the_basis_spans_the_null_space_of_finite_differences(tmp_path):
 
 def test_summary_reports_the_fixed_dh_parameters_change(tmp_path):
     write_puma(tmp_path / "puma.yaml")
-    cal = zrp_ga.calibrate(tmp_path / "puma.yaml", algorithm="lm", problem={"n_poses": 20, "cost": "nonlinear", "fixed": "[dh_theta_1,dh_d_3,u0_4]"})
+    cal = zrp_ga.calibrate(
+        tmp_path / "puma.yaml", algorithm="lm", problem={"n_poses": 20, "cost": "nonlinear", "fixed": "[dh_theta_1,dh_d_3,u0_4]"}
+    )
     summary = cal.summary
     assert summary["problem"]["fixed"] == ["u0_4", "dh_theta_1", "dh_d_3"]
     change = summary["dh_fixed_change"]

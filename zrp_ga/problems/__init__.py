@@ -18,8 +18,8 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from zrp_ga.config import ProblemConf
 from zrp_ga import dh
+from zrp_ga.config import ProblemConf
 from zrp_ga.layout import Layout, dh_mask, fixed_summary, mask
 from zrp_ga.metrics import Judge
 from zrp_ga.problem import CalibrationProblem
