@@ -16,7 +16,7 @@ import pytest
 from scipy.optimize import least_squares
 
 import zrp_ga
-from zrp_ga import dh
+from zrp_ga import dh, robots, simulation
 from zrp_ga.layout import Layout, dh_mask
 from zrp_ga.measurements import Measurements
 from zrp_ga.problem import CalibrationProblem
@@ -81,7 +81,7 @@ def test_fixed_dh_parameters_stay_and_the_free_ones_are_recovered(tmp_path):
     T = chain(a, alpha, d, theta, beta, q)
     data = Measurements(q=q, p=T[:, :3, 3], R=T[:, :3, :3], source="test")
     layout = dh_mask(Layout(6, hand=True), nominal, "dh", FIXED)
-    assert layout.size == 6 * 6 + 3 - 2 and layout.blocks == {"z": slice(0, layout.size)}
+    assert layout.size == 6 * 6 + 3 - 2 - 5 and layout.blocks == {"z": slice(0, layout.size)}  # less 2 DH, 5 slides (axes 2..6)
     problem = CalibrationProblem(nominal, data, layout, -np.ones(layout.size), np.ones(layout.size), cost="nonlinear")
     arm = fit(problem)
 
@@ -145,5 +145,10 @@ def test_bad_dh_names_are_refused(tmp_path):
         zrp_ga.calibrate(zrp, algorithm="lm", problem={"fixed": "[dh_d_3]"})
     with pytest.raises(ValueError, match="problem.free: 'dh_d_3': DH parameters are named in problem.fixed only"):
         zrp_ga.calibrate(tmp_path / "puma.yaml", algorithm="lm", problem={"free": "[dh_d_3]"})
+    robot = robots.get("puma560")  # a measured problem: not supported, said so
+    rng = np.random.default_rng(1)
+    data = simulation.measure(robot, simulation.random_joints(robot, 12, rng), rng, position_only=True)
+    with pytest.raises(ValueError, match="'dh_d_3': DH parameters can be fixed in simulated problems only"):
+        zrp_ga.calibrate(robot, data, algorithm="lm", problem={"fixed": "[dh_d_3]"})
     with pytest.raises(ValueError, match="dh_theta_6 is not a smooth function"):
         zrp_ga.calibrate("puma560", algorithm="lm", problem={"fixed": "[dh_theta_6]"})

@@ -429,7 +429,10 @@ def dh_mask(layout: Layout, nominal: ZRPRobot, convention: str, names: Iterable[
     nominal table's base x axis, ``dh.parameters(..., base_x)``): with C (len(names), full_size) their
     Jacobian with respect to the full genome at zero (central differences, step
     :data:`DH_STEP`), the genome is z with ``x = N z``, N an orthonormal basis of the null space
-    of C stacked on the unit rows of the fixed genes (``scipy.linalg.null_space``). An unknown
+    of C stacked on the unit rows of the fixed genes and on the slides of the axis points along
+    their nominal axes (:func:`_slides`: no pose and no DH parameter moves along them, but
+    left in, LM's damping moves freely along them, and slides of decimetres times axis tilts
+    would move the fixed DH parameters by millimetres at second order; ``scipy.linalg.null_space``). An unknown
     name, or a parameter that is not a smooth function of the errors at the nominal arm (a DH
     sign or Hayati choice at its boundary there), is a ValueError naming ``key.fixed``."""
     from scipy.linalg import null_space
@@ -462,10 +465,33 @@ def dh_mask(layout: Layout, nominal: ZRPRobot, convention: str, names: Iterable[
             raise ValueError(f"{key}.fixed: {names[int(np.argmax(jump))]} is not a smooth function of the parameter errors at the "
                              f"nominal arm (a DH choice changes there, gene {full.full_names[k]}); fix it by kind instead")  # fmt: skip
         C[:, k] = (up + down) / (2 * DH_STEP)
-    rows = [C] + [np.eye(full.size)[[full.full_names.index(g) for g in layout.fixed]]]
+    rows = [C, _slides(full, nominal).T] + [np.eye(full.size)[[full.full_names.index(g) for g in layout.fixed]]]
     N = null_space(np.vstack(rows))
     if N.shape[1] == 0:
         raise ValueError(f"{key}.fixed: every parameter would be fixed; nothing is left to calibrate")
     if layout.fixed:
         N[[full.full_names.index(g) for g in layout.fixed]] = 0.0  # exactly (null_space leaves ~1e-17)
     return dataclasses.replace(layout, basis=N, dh_fixed=tuple(dict.fromkeys(names)))
+
+
+def _slides(layout: Layout, nominal: ZRPRobot) -> Array:
+    """The model's null directions at the nominal arm (full_size, S), as
+    :func:`zrp_ga.error_model.canonical` takes them: axis i's point slid along axis i (body
+    vector i + d, body vector i+1 - d; a prismatic joint's in any direction), for the points the
+    genome can move (axis 1's only with a base)."""
+    n, blocks = nominal.n, layout.blocks
+    start = {i: blocks["b0"].start + 3 * (i - 2) for i in range(2, n + 2)}
+    if layout.base:
+        start[1] = blocks["base"].start
+    vectors = []
+    for i in range(1, n + 1):
+        if i not in start:
+            continue
+        for d in np.eye(3) if nominal.joint_types[i - 1] == "P" else nominal.u0[i - 1][None]:
+            v = np.zeros(layout.full_size)
+            v[start[i] : start[i] + 3] += d
+            v[start[i + 1] : start[i + 1] + 3] -= d
+            for t in range(2, layout.n_tools + 1) if i == n else ():
+                v[blocks[f"tool{t}"]] -= d
+            vectors.append(v)
+    return np.array(vectors).T if vectors else np.zeros((layout.full_size, 0))
