@@ -23,6 +23,11 @@ one with zeros (the nominal values) at the fixed places, and :meth:`Layout.unpac
 :meth:`Layout.robot` take either. ``full_names`` and :attr:`Layout.unmasked` are the genome
 without a mask (the Jacobian's columns before they are restricted to the free ones).
 
+A linear subspace instead (``basis``: N, full_size x K, orthonormal columns; :func:`dh_mask`
+builds it to hold DH parameters to first order): the genome is z with ``x = N z``;
+:meth:`Layout.expand` computes it, :meth:`Layout.columns` maps a Jacobian (``J N``) and
+:meth:`Layout.restrict` a full genome (``N^T x``); one gene block ``z``.
+
 The model turns about the normalised axes ``(u0 + du0) / |u0 + du0|``; the unit-length rows
 of the paper (Eq. 19-20) then keep ``|u0 + du0|`` near one (see :mod:`zrp_ga.problem`).
 """
@@ -89,7 +94,8 @@ class Layout:
     """Which parameter errors a genome holds: K = 6n (+3 with ``base``, +3 with ``hand``, +3 per
     tool beyond the first), less the ``fixed`` genes. ``tools``: offsets (m) of tools 2..T from
     tool 1 in the hand frame; ``known_tools``: the same for tools without genes; ``fixed``: names
-    of genes held at their nominal values (module docstring)."""
+    of genes held at their nominal values; ``basis``: N of a genome ``x = N z``, ``dh_fixed``: the
+    DH parameters it holds (module docstring)."""
 
     n: int
     base: bool = False
