@@ -164,7 +164,7 @@ class DHMismatch:
 
 def to_dh(
     robot: ZRPRobot, convention: str = "dh", parallel_tol: float = PARALLEL_TOL, samples: int = 200, seed: int = 0,
-    max_offset: float | None = None,
+    max_offset: float | None = None, base_x: ArrayLike | None = None,
 ) -> tuple[DHTable, DHMismatch]:
     """The DH (``"dh"``) or modified-DH (``"mdh"``) table of a ZRP arm and what it misses.
 
@@ -172,7 +172,9 @@ def to_dh(
     parallel, or whose common normal lies farther than ``max_offset`` (m; default: the arm's
     size, the sum of its body vectors' lengths) along the axis, get Hayati rows. The
     mismatch is measured at q = 0 and ``samples - 1`` joint values drawn uniformly within
-    ``robot.joint_limits`` (``numpy.random.default_rng(seed)``).
+    ``robot.joint_limits`` (``numpy.random.default_rng(seed)``). ``base_x`` (3,): the base
+    frame's x axis is this direction made perpendicular to axis 1 (default: the world axis most
+    perpendicular to axis 1, which jumps where two tie).
 
     >>> from zrp_ga import robots
     >>> table, mismatch = to_dh(robots.get("puma560"))
@@ -186,7 +188,7 @@ def to_dh(
     hand[:3, :3], hand[:3, 3] = robot.R_h0, points[-1]
     walk = _walk_dh if convention == "dh" else _walk_mdh
     size = float(np.linalg.norm(robot.b0, axis=1).sum()) if max_offset is None else max_offset
-    base, rows, axis_frames, far = walk(points, robot.u0, hand, parallel_tol, size)
+    base, rows, axis_frames, far = walk(points, robot.u0, hand, parallel_tol, size, base_x)
     a, alpha, d, theta, beta = _tidy(np.array(rows).T)
     table = DHTable(
         convention, a, alpha, d, theta, robot.joint_types, base=_tidy(base), name=robot.name,
@@ -198,6 +200,24 @@ def to_dh(
     return table, _mismatch(robot, table, samples, seed, notes)
 
 
+DH_KINDS = ("a", "alpha", "d", "theta", "beta")  # the columns of a table row, as named by parameters()
+
+
+def parameters(robot: ZRPRobot, convention: str = "dh", base_x: ArrayLike | None = None) -> dict[str, float]:
+    """The DH (``"dh"``) or modified-DH (``"mdh"``) parameters of ``robot`` as :func:`to_dh`
+    reads them, by name ``dh_<kind>_<i>``: ``kind`` one of ``a, alpha, d, theta, beta`` (m, rad),
+    ``i`` the table's row (joint i, from 1; in a modified-DH table row i holds ``a_{i-1}``,
+    ``alpha_{i-1}``, ``beta_{i-1}``, ``d_i``, ``theta_i``). ``base_x``: as in :func:`to_dh`
+    (give the nominal table's, ``table.base[:3, 0]``, to read nearby arms smoothly).
+
+    >>> from zrp_ga import robots
+    >>> round(parameters(robots.get("puma560"))["dh_a_2"], 4)
+    0.4318
+    """
+    table, _ = to_dh(robot, convention, samples=1, base_x=base_x)
+    return {f"dh_{k}_{i + 1}": float(getattr(table, k)[i]) for k in DH_KINDS for i in range(robot.n)}
+
+
 def _tidy(x: Array) -> Array:
     """Round-off below 1e-14 set to zero (and -0.0 to 0.0), so that files read 0.0 rather than
     -1.2e-17. The mismatch is measured after this."""
@@ -206,7 +226,7 @@ def _tidy(x: Array) -> Array:
 
 # --- the walk along the axes at q = 0 ------------------------------------------------------------
 def _walk_dh(
-    points: Array, u0: Array, hand: Array, tol: float, size: float
+    points: Array, u0: Array, hand: Array, tol: float, size: float, base_x: ArrayLike | None = None
 ) -> tuple[Array, list, list[Array], dict[int, float]]:
     """Standard DH: frame i-1 has z along axis i; frame i sits on axis i+1 where the common
     normal from axis i meets it, or (Hayati row, nearly parallel axes) where axis i+1 crosses
@@ -215,7 +235,7 @@ def _walk_dh(
     ones. Returns the base frame, the rows (a, alpha, d, theta, beta), the table's frames 0..n
     (world, q = 0) and, for each Hayati row (index from 0), how far away the common normal was."""
     n = len(u0)
-    T = _base_frame(points[0], u0[0])
+    T = _base_frame(points[0], u0[0], base_x)
     frames, rows, far = [T], [], {}
     for i in range(n):
         if i == n - 1:
@@ -240,7 +260,7 @@ def _walk_dh(
 
 
 def _walk_mdh(
-    points: Array, u0: Array, hand: Array, tol: float, size: float
+    points: Array, u0: Array, hand: Array, tol: float, size: float, base_x: ArrayLike | None = None
 ) -> tuple[Array, list, list[Array], dict[int, float]]:
     """Modified DH: frame i sits on axis i where the common normal to axis i+1 leaves it, or
     (nearly parallel axes i, i+1: a Hayati row i+1) where the previous row reached axis i, with
@@ -252,7 +272,7 @@ def _walk_mdh(
     tool hangs on), world, q = 0, and, for each Hayati row (index from 0), how far away the
     common normal was."""
     n = len(u0)
-    T = _base_frame(points[0], u0[0])
+    T = _base_frame(points[0], u0[0], base_x)
     base, frames, rows, far = T, [], [], {}
     for i in range(n):
         reach = _mdh_reach(T, points[i], u0[i], hayati=i - 1 in far)  # (a, alpha, 0, 0, beta)
@@ -321,11 +341,12 @@ def _normal_towards(r: Array, x_prev: Array) -> Array:
     return _signed(r / np.linalg.norm(r), x_prev, r) if np.linalg.norm(r) > _EPS_M else x_prev
 
 
-def _base_frame(point: Array, axis: Array) -> Array:
+def _base_frame(point: Array, axis: Array, base_x: ArrayLike | None = None) -> Array:
     """Frame 0: z along axis 1, origin at the foot of the perpendicular from the world origin,
-    x along the world axis most perpendicular to axis 1."""
+    x along ``base_x`` (default: the world axis most perpendicular to axis 1), projected."""
     origin = point - np.dot(point, axis) * axis
-    return _frame(origin, np.eye(3)[np.argmin(np.abs(axis))], axis)
+    x = np.eye(3)[np.argmin(np.abs(axis))] if base_x is None else np.asarray(base_x, dtype=float)
+    return _frame(origin, x, axis)
 
 
 def _dh_end_frame(T: Array, hand: Array) -> Array:

@@ -365,8 +365,6 @@ def canonical(layout: Layout, nominal: ZRPRobot, x: ArrayLike) -> Array:
     start = {i: blocks["b0"].start + 3 * (i - 2) for i in range(2, n + 2)}
     if whole.base:
         start[1] = blocks["base"].start
-    fixed = np.ones(whole.size, dtype=bool)
-    fixed[layout.free] = False
     vectors = []
     for i in range(1, n + 1):
         if i not in start:
@@ -381,14 +379,15 @@ def canonical(layout: Layout, nominal: ZRPRobot, x: ArrayLike) -> Array:
             vectors.append(v)
     if vectors:
         S = np.array(vectors).T
-        if fixed.any():  # the combinations of slides that leave the fixed genes alone
+        if layout.is_masked:  # the combinations of slides within the genome's range (fixed genes alone)
             from scipy.linalg import null_space
 
-            S = S @ null_space(S[fixed])
+            N = layout.matrix
+            S = S @ null_space(S - N @ (N.T @ S))
     if vectors and S.shape[1]:
         Q = np.linalg.qr(S)[0]
         full -= Q @ (Q.T @ full)
-    return full if x.shape[-1] == whole.size else full[layout.free]
+    return full if x.shape[-1] == whole.size else layout.restrict(full)
 
 
 def row_space_projector(J: ArrayLike) -> Array:

@@ -23,6 +23,11 @@ one with zeros (the nominal values) at the fixed places, and :meth:`Layout.unpac
 :meth:`Layout.robot` take either. ``full_names`` and :attr:`Layout.unmasked` are the genome
 without a mask (the Jacobian's columns before they are restricted to the free ones).
 
+A linear subspace instead (``basis``: N, full_size x K, orthonormal columns; :func:`dh_mask`
+builds it to hold DH parameters to first order): the genome is z with ``x = N z``;
+:meth:`Layout.expand` computes it, :meth:`Layout.columns` maps a Jacobian (``J N``) and
+:meth:`Layout.restrict` a full genome (``N^T x``); one gene block ``z``.
+
 The model turns about the normalised axes ``(u0 + du0) / |u0 + du0|``; the unit-length rows
 of the paper (Eq. 19-20) then keep ``|u0 + du0|`` near one (see :mod:`zrp_ga.problem`).
 """
@@ -89,7 +94,8 @@ class Layout:
     """Which parameter errors a genome holds: K = 6n (+3 with ``base``, +3 with ``hand``, +3 per
     tool beyond the first), less the ``fixed`` genes. ``tools``: offsets (m) of tools 2..T from
     tool 1 in the hand frame; ``known_tools``: the same for tools without genes; ``fixed``: names
-    of genes held at their nominal values (module docstring)."""
+    of genes held at their nominal values; ``basis``: N of a genome ``x = N z``, ``dh_fixed``: the
+    DH parameters it holds (module docstring)."""
 
     n: int
     base: bool = False
@@ -97,6 +103,8 @@ class Layout:
     tools: tuple[Vec3, ...] = ()
     known_tools: tuple[Vec3, ...] = ()
     fixed: tuple[str, ...] = ()
+    basis: Array | None = dataclasses.field(default=None, compare=False, repr=False)
+    dh_fixed: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("tools", "known_tools"):
@@ -111,6 +119,16 @@ class Layout:
         object.__setattr__(self, "fixed", tuple(k for k in self.full_names if k in fixed))
         if self.fixed and len(self.fixed) == len(self.full_names):
             raise ValueError("layout.fixed: every parameter is fixed; nothing is left to calibrate")
+        if self.basis is not None:
+            N = np.array(self.basis, dtype=float)
+            if N.ndim != 2 or N.shape[0] != self.full_size or not 1 <= N.shape[1] <= self.full_size:
+                raise ValueError(f"layout.basis: expected a ({self.full_size}, K) matrix with K >= 1, got shape {N.shape}")
+            if not np.allclose(N.T @ N, np.eye(N.shape[1]), atol=1e-9):
+                raise ValueError("layout.basis: the columns are not orthonormal")
+            if self.fixed and np.abs(N[[self.full_names.index(k) for k in self.fixed]]).max() > 1e-9:
+                raise ValueError("layout.basis: moves a fixed gene")
+            N.setflags(write=False)
+            object.__setattr__(self, "basis", N)
 
     @property
     def n_tools(self) -> int:
@@ -120,7 +138,36 @@ class Layout:
     @functools.cached_property
     def unmasked(self) -> Layout:
         """This layout with every gene free (itself when nothing is fixed)."""
-        return dataclasses.replace(self, fixed=()) if self.fixed else self
+        return dataclasses.replace(self, fixed=(), basis=None, dh_fixed=()) if self.is_masked else self
+
+    @property
+    def is_masked(self) -> bool:
+        """Whether the genome holds fewer than all genes (fixed genes or a basis)."""
+        return bool(self.fixed) or self.basis is not None
+
+    @functools.cached_property
+    def matrix(self) -> Array:
+        """The map N (full_size, size) from a genome to the full genome, ``x = N z``: the
+        ``basis``, or the identity's columns of the free genes."""
+        if self.basis is not None:
+            return self.basis
+        return np.eye(self.full_size)[:, self.free]
+
+    def columns(self, J: ArrayLike) -> Array:
+        """Columns (..., full_size) of a Jacobian in the full genome as columns of this genome
+        (..., size): ``J N`` (chain rule through ``x = N z``; the free columns for a plain mask)."""
+        J = np.asarray(J, dtype=float)
+        if self.basis is not None:
+            return J @ self.basis
+        return J[..., self.free] if self.fixed else J
+
+    def restrict(self, X: ArrayLike) -> Array:
+        """Full genomes X (..., full_size) as genomes (..., size): ``N^T x``, the genome nearest to
+        x (the free genes for a plain mask); the inverse of :meth:`expand` on its range."""
+        X = np.asarray(X, dtype=float)
+        if self.basis is not None:
+            return X @ self.basis
+        return X[..., self.free] if self.fixed else X.copy()
 
     @functools.cached_property
     def full_names(self) -> list[str]:
@@ -140,19 +187,27 @@ class Layout:
 
     @property
     def names(self) -> list[str]:
-        """Names of the genome's (free) genes."""
+        """Names of the genome's (free) genes; with a ``basis``, ``z_k_NAME`` after the full gene
+        NAME with the largest weight in column k."""
         full = self.full_names
+        if self.basis is not None:
+            return [f"z_{k + 1}_{full[int(np.argmax(np.abs(c)))]}" for k, c in enumerate(self.basis.T)]
         return [full[k] for k in self.free] if self.fixed else list(full)
 
     @property
     def size(self) -> int:
+        if self.basis is not None:
+            return self.basis.shape[1]
         return self.full_size - len(self.fixed)
 
     @property
     def blocks(self) -> dict[str, slice]:
         """Gene blocks of the genome: ``u0`` (axes), ``b0`` (body vectors 2..n+1), ``base``,
         ``hand``, ``tool2`` .. ``toolT`` (the last body vectors of the other tools), each the
-        free genes of that block (a block with none left is left out)."""
+        free genes of that block (a block with none left is left out). With a ``basis``, one
+        block ``z`` (each gene moves several parameters)."""
+        if self.basis is not None:
+            return {"z": slice(0, self.size)}
         full = self._full_blocks()
         if not self.fixed:
             return full
@@ -184,6 +239,8 @@ class Layout:
             return X.copy()
         if X.shape[-1] != self.size:
             raise ValueError(f"layout: genomes of {X.shape[-1]} genes, expected {self.size} (or {self.full_size} with the fixed ones)")
+        if self.basis is not None:
+            return X @ self.basis.T
         out = np.zeros(X.shape[:-1] + (self.full_size,))
         out[..., self.free] = X
         return out
@@ -245,6 +302,11 @@ class Layout:
             ends = nominal_ends if ends is None else np.asarray(ends, dtype=float).reshape(len(self.tools), 3)
             parts.append((ends - nominal_ends).ravel())
         x = np.concatenate(parts)
+        if self.basis is not None:
+            z = x @ self.basis
+            if np.abs(x - self.basis @ z).max() > 1e-9:  # (normalised axes: second order off)
+                raise ValueError(f"layout: the robots differ outside the genome's subspace (fixed DH parameters {', '.join(self.dh_fixed)})")
+            return z
         if not self.fixed:
             return x
         moved = [name for name, v in zip(self.full_names, x) if name in set(self.fixed) and abs(v) > 1e-12]
@@ -355,3 +417,87 @@ def fixed_summary(layout: Layout) -> list[str]:
         else:
             out.append(name)
     return out
+
+
+DH_STEP = 1e-7  # finite-difference step of the DH Jacobian (m, rad)
+DH_JUMP = 1e-4  # a DH parameter moving more than this over one step is not smooth there (m, rad)
+
+
+def dh_names_hint(n: int) -> str:
+    """The DH names :func:`dh_mask` takes for an arm of n joints, in one line."""
+    return f"dh_a_i, dh_alpha_i, dh_d_i, dh_theta_i, dh_beta_i with i the table's row 1..{n}"
+
+
+def dh_mask(layout: Layout, nominal: ZRPRobot, convention: str, names: Iterable[str], key: str = "problem") -> Layout:
+    """``layout`` (possibly masked by kind) whose genome also keeps the DH parameters ``names``
+    (:func:`zrp_ga.dh.parameters`: ``dh_theta_2``, ``dh_d_3``, ... of the ``convention`` table)
+    of the arm at their nominal values, to first order (the tables of nearby arms read with the
+    nominal table's base x axis, ``dh.parameters(..., base_x)``): with C (len(names), full_size) their
+    Jacobian with respect to the full genome at zero (central differences, step
+    :data:`DH_STEP`), the genome is z with ``x = N z``, N an orthonormal basis of the null space
+    of C stacked on the unit rows of the fixed genes and on the slides of the axis points along
+    their nominal axes (:func:`_slides`: no pose and no DH parameter moves along them, but
+    left in, LM's damping moves freely along them, and slides of decimetres times axis tilts
+    would move the fixed DH parameters by millimetres at second order; ``scipy.linalg.null_space``). An unknown
+    name, or a parameter that is not a smooth function of the errors at the nominal arm (a DH
+    sign or Hayati choice at its boundary there), is a ValueError naming ``key.fixed``."""
+    from scipy.linalg import null_space
+
+    from zrp_ga import dh
+
+    names = [str(k).strip() for k in names]
+    full = layout.unmasked
+    zero = full.robot(nominal, np.zeros(full.size))
+    base_x = dh.to_dh(zero, convention, samples=1)[0].base[:3, 0]  # held: the base frame's x turns with axis 1
+    base = dh.parameters(zero, convention, base_x)
+    for name in names:
+        if name not in base:
+            raise ValueError(f"{key}.fixed: {name!r} is not a DH parameter of this arm; valid: {dh_names_hint(nominal.n)}")
+    angle = np.array([name.split("_")[1] in ("alpha", "theta", "beta") for name in names])
+
+    def values(x: Array) -> Array:
+        p = dh.parameters(full.robot(nominal, x), convention, base_x)
+        return np.array([p[name] for name in names])
+
+    f0 = values(np.zeros(full.size))
+    C = np.empty((len(names), full.size))
+    for k in range(full.size):
+        e = np.zeros(full.size)
+        e[k] = DH_STEP
+        up, down = values(e) - f0, f0 - values(-e)
+        up[angle], down[angle] = np.angle(np.exp(1j * up[angle])), np.angle(np.exp(1j * down[angle]))
+        jump = np.maximum(np.abs(up), np.abs(down)) > DH_JUMP
+        if jump.any():
+            raise ValueError(f"{key}.fixed: {names[int(np.argmax(jump))]} is not a smooth function of the parameter errors at the "
+                             f"nominal arm (a DH choice changes there, gene {full.full_names[k]}); fix it by kind instead")  # fmt: skip
+        C[:, k] = (up + down) / (2 * DH_STEP)
+    rows = [C, _slides(full, nominal).T] + [np.eye(full.size)[[full.full_names.index(g) for g in layout.fixed]]]
+    N = null_space(np.vstack(rows))
+    if N.shape[1] == 0:
+        raise ValueError(f"{key}.fixed: every parameter would be fixed; nothing is left to calibrate")
+    if layout.fixed:
+        N[[full.full_names.index(g) for g in layout.fixed]] = 0.0  # exactly (null_space leaves ~1e-17)
+    return dataclasses.replace(layout, basis=N, dh_fixed=tuple(dict.fromkeys(names)))
+
+
+def _slides(layout: Layout, nominal: ZRPRobot) -> Array:
+    """The model's null directions at the nominal arm (full_size, S), as
+    :func:`zrp_ga.error_model.canonical` takes them: axis i's point slid along axis i (body
+    vector i + d, body vector i+1 - d; a prismatic joint's in any direction), for the points the
+    genome can move (axis 1's only with a base)."""
+    n, blocks = nominal.n, layout.blocks
+    start = {i: blocks["b0"].start + 3 * (i - 2) for i in range(2, n + 2)}
+    if layout.base:
+        start[1] = blocks["base"].start
+    vectors = []
+    for i in range(1, n + 1):
+        if i not in start:
+            continue
+        for d in np.eye(3) if nominal.joint_types[i - 1] == "P" else nominal.u0[i - 1][None]:
+            v = np.zeros(layout.full_size)
+            v[start[i] : start[i] + 3] += d
+            v[start[i + 1] : start[i + 1] + 3] -= d
+            for t in range(2, layout.n_tools + 1) if i == n else ():
+                v[blocks[f"tool{t}"]] -= d
+            vectors.append(v)
+    return np.array(vectors).T if vectors else np.zeros((layout.full_size, 0))

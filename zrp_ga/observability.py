@@ -74,8 +74,7 @@ def scaled_pose_rows(
     J[:, :3] *= orientation_weight
     if weights is not None:
         J[:, 3:] *= np.asarray(weights, dtype=float)[:, :, None]
-    if layout.fixed:  # the free genes' columns (a layout without tools: K = 6n + base + hand)
-        J = J[..., layout.free]
+    J = layout.columns(J)  # the genome's columns (a layout without tools: K = 6n + base + hand)
     return J[:, 3:] if position_only else J
 
 

@@ -158,7 +158,7 @@ class CalibrationProblem:
         """Stacked, weighted error Jacobian at ``x``. ``exact``: the orientation rows are the
         derivative of this problem's residual ``vee(skew(W))``, ``W = R_meas R^T``, which is
         ``(tr(W) I - W^T) / 2`` times the paper's J1 rows (equal when W = I)). The columns of
-        the free genes: computed for all genes, then restricted."""
+        the genome's genes: computed for all genes, then mapped (:meth:`Layout.columns`)."""
         m = self.layout.unpack(self.nominal, x)
         x = self.layout.expand(x)
         data, n, blocks = self.data, self.nominal.n, self.layout.unmasked.blocks
@@ -183,7 +183,7 @@ class CalibrationProblem:
         for i in range(n):
             U[i, 3 * i : 3 * i + 3] = raw[i]
         J = np.vstack([J.reshape(-1, J.shape[-1]), U]) * self._row_weights[:, None]
-        return J[:, self.layout.free] if self.layout.fixed else J
+        return self.layout.columns(J)  # J N: the chain rule through x = N z (the free columns for a plain mask)
 
     def _tool_jacobians(self, unit: Array, m, compiled: bool) -> Array:
         """Pose Jacobians (M, 6, K) at the unit axes ``unit`` (n, 3) and one genome's model

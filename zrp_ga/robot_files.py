@@ -86,7 +86,8 @@ def read_robot(path: str | Path, base_link: str | None = None, tip_link: str | N
     doc = _Yaml(path, text)
     top = doc.mapping(doc.root, "the file")
     if "joints" in top:
-        return _dh_table(doc).to_robot()
+        table = _dh_table(doc)
+        return table.to_robot().replace(source=table)  # the table read: DH names in problem.fixed
     if "u0" in top:
         return _zrp_robot(doc, top)
     raise doc.error(doc.root, "neither a DH table (key 'joints') nor a ZRP robot (keys 'u0', 'b0')")

@@ -18,8 +18,9 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from zrp_ga import dh
 from zrp_ga.config import ProblemConf
-from zrp_ga.layout import Layout, fixed_summary, mask
+from zrp_ga.layout import Layout, dh_mask, fixed_summary, mask
 from zrp_ga.metrics import Judge
 from zrp_ga.problem import CalibrationProblem
 from zrp_ga.robot import ZRPRobot
@@ -57,26 +58,68 @@ class Task:
 
     def report(self, x: Array) -> dict[str, Any]:
         """Entries of this kind for ``summary.json`` about the calibrated genome ``x``."""
-        return {}
+        return self.dh_report(x)
+
+    def dh_report(self, x: Array) -> dict[str, Any]:
+        """With fixed DH parameters: ``dh_fixed_change``, each one's change from the nominal arm
+        to the calibrated one (m, rad; held only to first order, so second-order small)."""
+        layout = self.problem.layout
+        if not layout.dh_fixed:
+            return {}
+        convention = self.robot.source.convention
+        base_x = dh.to_dh(self.problem.nominal, convention, samples=1)[0].base[:3, 0]
+        before = dh.parameters(self.problem.nominal, convention, base_x)
+        after = dh.parameters(self.calibrated_robot(x), convention, base_x)
+        change = {k: float(np.angle(np.exp(1j * (after[k] - before[k])))) if k.split("_")[1] in ("alpha", "theta", "beta")
+                  else after[k] - before[k] for k in layout.dh_fixed}  # fmt: skip
+        return {"dh_fixed_change": change}
 
     def write(self, out: Path, x: Array) -> None:
         """Files of this kind beyond the common ones."""
 
 
-def masked(c: ProblemConf, layout: Layout, info: dict[str, Any] | None = None) -> Layout:
+def masked(c: ProblemConf, layout: Layout, info: dict[str, Any] | None = None, robot: ZRPRobot | None = None) -> Layout:
     """``layout`` with the parameters ``problem.fixed`` / ``problem.free`` name held at nominal
     (:func:`zrp_ga.layout.mask`; an unknown name is one line naming the key and the valid
-    names); what is fixed goes into ``info["fixed"]`` (``summary.json``)."""
-    out = mask(layout, c.fixed, c.free, "problem")
-    if info is not None and out.fixed:
-        info["fixed"] = fixed_summary(out)
+    names); what is fixed goes into ``info["fixed"]`` (``summary.json``). DH names in
+    ``problem.fixed`` (``dh_theta_2``: :func:`zrp_ga.layout.dh_mask`) need ``robot``, the nominal
+    arm read from a DH or modified-DH table file; their nominal values go into
+    ``info["dh_fixed_nominal"]``."""
+    fixed = None if c.fixed is None else [c.fixed] if isinstance(c.fixed, str) else list(c.fixed)
+    free = None if c.free is None else [c.free] if isinstance(c.free, str) else list(c.free)
+    dh_names = [str(k).strip() for k in fixed or () if str(k).strip().startswith("dh_")]
+    for name in free or ():
+        if str(name).strip().startswith("dh_"):
+            raise ValueError(f"problem.free: {str(name).strip()!r}: DH parameters are named in problem.fixed only")
+    if dh_names:
+        from zrp_ga.dh import DHTable
+
+        if robot is None:
+            raise ValueError(f"problem.fixed: {dh_names[0]!r}: DH parameters can be fixed in simulated problems only "
+                             "(problem=paper or multipose)")  # fmt: skip
+        if not isinstance(robot.source, DHTable):
+            raise ValueError(f"problem.fixed: {dh_names[0]!r} names a DH parameter, but the arm {robot.name!r} was not read from a "
+                             "DH table file (robot.file: a DH or modified-DH table, or a preset); fix it by kind (u0_i, b0_i, ...)")  # fmt: skip
+        fixed = [k for k in fixed if not str(k).strip().startswith("dh_")]
+    out = mask(layout, fixed, free, "problem")
+    if dh_names:
+        out = dh_mask(out, robot, robot.source.convention, dh_names, "problem")
+    if info is not None and out.is_masked:
+        info["fixed"] = fixed_summary(out) + list(out.dh_fixed)
+    if info is not None and out.dh_fixed:
+        nominal = dh.parameters(robot, robot.source.convention)
+        info["dh_fixed_nominal"] = {k: nominal[k] for k in out.dh_fixed}
     return out
 
 
 def half_ranges(c: ProblemConf, layout: Layout) -> Array:
     """Half widths (K,) of the gene ranges: ``axis_error`` on the axes and the hand (rad),
-    ``body_error`` on the body vectors and the base point (m), times ``search_scale``."""
-    half = np.empty(layout.size)
-    for name, block in layout.blocks.items():
+    ``body_error`` on the body vectors and the base point (m), times ``search_scale``. With a
+    basis N (fixed DH parameters), gene k's is ``sum_j |N_jk| h_j`` over the full genome's
+    half widths h: the largest z_k = N[:, k] . x over the box |x_j| <= h_j."""
+    full = layout.unmasked
+    half = np.empty(full.size)
+    for name, block in full.blocks.items():
         half[block] = c.axis_error if name in ("u0", "hand") else c.body_error
+    half = np.abs(layout.matrix).T @ half if layout.is_masked else half
     return half * c.search_scale

@@ -25,7 +25,7 @@ def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> Task:
     c: SimulatedConf = section(SimulatedConf, settings, "problem")
     info = {"kind": "simulated"}
     full = Layout(robot.n, base=c.identify_base, hand=c.identify_hand)
-    layout = masked(c, full, info)
+    layout = masked(c, full, info, robot)
     instance_seed = run_seed if c.seed is None else c.seed
     sim = simulation.simulate(
         robot, full, np.random.default_rng([instance_seed, 1]), n_poses=c.n_poses, n_validation=c.n_validation,
