@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from zrp_ga.errors import warn
 from zrp_ga.robot import MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
 
 Array = NDArray[np.float64]
@@ -192,19 +193,43 @@ def read(path: str | Path, fmt: Format, robot: ZRPRobot, drop_bad_rows: bool = F
     path = Path(path)
     _check_units(path, fmt)
     raw, lines = _table(path, fmt)
+    return _checked(raw, lines, fmt, robot, drop_bad_rows, str(path), "line")
+
+
+def from_table(table, fmt: Format, robot: ZRPRobot, drop_bad_rows: bool = False, source: str = "data") -> Measurements:
+    """In-memory measurements (a pandas DataFrame with the columns of ``fmt``, numbers or text)
+    checked and converted exactly as :func:`read` checks a file; a ValueError names ``source``,
+    the row (counted from 0, as ``DataFrame.iloc`` counts) and the column."""
+    import pandas as pd
+
+    _check_units(source, fmt)
+    if not isinstance(table, pd.DataFrame):
+        raise ValueError(f"{source}: expected a pandas DataFrame, got {type(table).__name__}")
+    names = [str(c).strip() for c in table.columns]
+    repeated = sorted({c for c in names if names.count(c) > 1})
+    if repeated:
+        raise ValueError(f"{source}: column {repeated[0]!r} appears {names.count(repeated[0])} times")
+    raw = table.astype(str).set_axis(names, axis=1).reset_index(drop=True)
+    return _checked(raw, np.arange(len(raw)), fmt, robot, drop_bad_rows, source, "row")
+
+
+def _checked(raw, lines, fmt: Format, robot: ZRPRobot, drop_bad_rows: bool, source: str, row: str) -> Measurements:
+    """The table's cells (text) checked and converted: ``row`` is how its rows are named in
+    messages (``line`` of a file, ``row`` of a DataFrame)."""
+    path = source
     columns = _columns(path, raw, fmt, robot.n)
     values = np.column_stack([_numbers(raw[c], fmt.decimal) for c in columns]) if len(raw) else np.empty((0, len(columns)))
     tools = raw[fmt.tool].str.strip().to_numpy(dtype=str) if fmt.tool in raw.columns else None
     units = _resolve_units(path, fmt, robot, columns, values)
     bad = _bad_cells(values, columns, units, fmt, robot, tools)
-    values, raw, lines, tools = _drop(path, bad, raw, columns, values, lines, tools, drop_bad_rows)
+    values, raw, lines, tools = _drop(path, bad, raw, columns, values, lines, tools, drop_bad_rows, row)
     if len(values) == 0:
         raise ValueError(f"{path}: no measurement rows")
-    values, lines, tools = _drop_repeats(path, values, lines, tools, drop_bad_rows)
-    return _measurements(fmt, robot, columns, values, lines, tools, units, str(path))
+    values, lines, tools = _drop_repeats(path, values, lines, tools, drop_bad_rows, row)
+    return _measurements(fmt, robot, columns, values, lines, tools, units, source)
 
 
-def _check_units(path: Path, fmt: Format) -> None:
+def _check_units(path: Path | str, fmt: Format) -> None:
     for unit, table in ((fmt.length_unit, LENGTH), (fmt.angle_unit, ANGLE), (fmt.joint_unit, ANGLE)):
         if unit not in table and unit != AUTO:
             raise ValueError(f"{path}: unknown unit {unit!r}; known: {', '.join(table)}, {AUTO}")
@@ -237,7 +262,7 @@ def _table(path: Path, fmt: Format):
     return raw[filled].reset_index(drop=True), lines[filled]
 
 
-def _columns(path: Path, raw, fmt: Format, n: int) -> list[str]:
+def _columns(path: Path | str, raw, fmt: Format, n: int) -> list[str]:
     """The numeric columns to read: joints and positions, orientation (with a stated convention)
     and standard deviations when all three of a group are present."""
     if fmt.joints[0] == "q1":  # generic format: count the q columns to name a wrong joint count
@@ -276,7 +301,7 @@ class _Units:
     names: tuple[str, str, str]
 
 
-def _resolve_units(path: Path, fmt: Format, robot: ZRPRobot, columns: list[str], values: Array) -> _Units:
+def _resolve_units(path: Path | str, fmt: Format, robot: ZRPRobot, columns: list[str], values: Array) -> _Units:
     """The file's units, ``auto`` ones decided from its numbers (rows with a cell that no unit
     makes sensible left out: they are refused by line and column afterwards); a stated length
     unit that cannot be right for this arm is an error with a hint."""
@@ -298,7 +323,7 @@ def reach_m(robot: ZRPRobot) -> float:
     return float(np.linalg.norm(robot.b0[1:], axis=1).sum() + stroke)
 
 
-def resolve_length_unit(path: Path, points: Array, robot: ZRPRobot, unit: str) -> str:
+def resolve_length_unit(path: Path | str, points: Array, robot: ZRPRobot, unit: str) -> str:
     """``m`` or ``mm`` for measured points (M, 3) in file units. Points a tool on the arm can
     reach spread over at most twice its reach plus a tool (the spread: twice the median
     distance from the median point, so that absurd cells in fewer than half of the rows do not
@@ -383,7 +408,7 @@ def _far_points(values: Array, columns: list[str], fmt: Format, u: _Units, robot
     return out
 
 
-def _drop(path: Path, bad: list, raw, columns: list[str], values: Array, lines, tools, drop_bad_rows: bool):
+def _drop(path: Path | str, bad: list, raw, columns: list[str], values: Array, lines, tools, drop_bad_rows: bool, row: str = "line"):
     """Stop at the first bad cell, or (``drop_bad_rows``) drop the rows that have one."""
     if not bad:
         return values, raw, lines, tools
@@ -395,17 +420,17 @@ def _drop(path: Path, bad: list, raw, columns: list[str], values: Array, lines, 
             what = "empty" if text.strip() == "" else f"{text.strip()!r} is not a finite number"
         cells.append((int(lines[r]), names[j], what))
     line, col, what = cells[0]
-    first = f"{path}, line {line}, column {col!r}: {what}"
+    first = f"{path}, {row} {line}, column {col!r}: {what}"
     rows = np.unique([r for r, _, _ in bad])
     if not drop_bad_rows:
         more = f" ({len(cells) - 1} more bad cells in {len(rows)} rows)" if len(cells) > 1 else ""
         raise ValueError(first + more + "; set problem.drop_bad_rows=true to drop such rows")
-    log.warning("%s; dropped %d rows with bad cells (lines %s)", first, len(rows), _listed(lines[rows]))
+    warn(f"{first}; dropped {len(rows)} rows with bad cells ({row}s {_listed(lines[rows])})", log)
     keep = np.setdiff1d(np.arange(len(values)), rows)
     return values[keep], raw.iloc[keep], lines[keep], None if tools is None else tools[keep]
 
 
-def _drop_repeats(path: Path, values: Array, lines, tools, drop_bad_rows: bool):
+def _drop_repeats(path: Path | str, values: Array, lines, tools, drop_bad_rows: bool, row: str = "line"):
     """Rows that repeat an earlier row exactly (every number and the tool): a copy, not a new
     measurement (a tracker never reads the same point twice to the last digit)."""
     import pandas as pd
@@ -418,11 +443,11 @@ def _drop_repeats(path: Path, values: Array, lines, tools, drop_bad_rows: bool):
         return values, lines, tools
     first = int(np.flatnonzero(repeat)[0])
     same = int(np.flatnonzero((frame == frame.iloc[first]).all(axis=1).to_numpy())[0])
-    what = (f"{path}: {int(repeat.sum())} rows repeat earlier rows exactly (first: line {lines[first]} repeats "
-            f"line {lines[same]})")  # fmt: skip
+    what = (f"{path}: {int(repeat.sum())} rows repeat earlier rows exactly (first: {row} {lines[first]} repeats "
+            f"{row} {lines[same]})")  # fmt: skip
     if not drop_bad_rows:
         raise ValueError(what + "; remove them, or set problem.drop_bad_rows=true to drop them")
-    log.warning("%s; dropped them (lines %s)", what, _listed(lines[repeat]))
+    warn(f"{what}; dropped them ({row}s {_listed(lines[repeat])})", log)
     keep = ~repeat
     return values[keep], lines[keep], None if tools is None else tools[keep]
 

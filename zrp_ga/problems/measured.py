@@ -34,6 +34,7 @@ import numpy as np
 
 from zrp_ga import error_model, measurements, metrics, records
 from zrp_ga.config import Format, MeasuredConf, Ranges, section
+from zrp_ga.errors import warn
 from zrp_ga.layout import Layout
 from zrp_ga.measurements import Measurements
 from zrp_ga.metrics import Judge
@@ -187,7 +188,7 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
     sets = {"calibration": calib, **({"validation": val} if val is not None else {})}
     judge = Judge(layout, nominal, validation, registration=c.validation_registration.value)
     for w in warnings:
-        log.warning(w)
+        warn(w, log)
     return MeasuredTask(name, problem, judge, robot, info, warnings, registration=reg, sets=sets)
 
 

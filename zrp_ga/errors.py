@@ -1,0 +1,43 @@
+"""The package's warning class and the one helper every user-facing warning goes through.
+
+On the command line a warning is a log line (as Hydra's logging shows it); inside
+:func:`python_warnings` (what :func:`zrp_ga.calibrate` runs in) it is a Python warning of class
+:class:`ZrpGaWarning`, which a notebook catches or filters with the :mod:`warnings` module
+(``warnings.simplefilter("ignore", zrp_ga.ZrpGaWarning)``, ``pytest.warns``), each message once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import logging
+import warnings
+from collections.abc import Iterator
+
+
+class ZrpGaWarning(UserWarning):
+    """A warning of zrp_ga: the data, the problem or the result deserve a look."""
+
+
+_seen: contextvars.ContextVar[set[str] | None] = contextvars.ContextVar("zrp_ga_python_warnings", default=None)
+
+
+def warn(message: str, log: logging.Logger | None = None, category: type[ZrpGaWarning] = ZrpGaWarning) -> None:
+    """``message`` as a Python warning inside :func:`python_warnings` (once per message), else
+    as a warning of ``log`` (the caller's logger)."""
+    seen = _seen.get()
+    if seen is None:
+        (log or logging.getLogger("zrp_ga")).warning("%s", message)
+    elif message not in seen:
+        seen.add(message)
+        warnings.warn(message, category, stacklevel=3)
+
+
+@contextlib.contextmanager
+def python_warnings() -> Iterator[None]:
+    """Within: warnings are Python warnings (:func:`warn`) instead of log lines."""
+    token = _seen.set(set())
+    try:
+        yield
+    finally:
+        _seen.reset(token)
