@@ -209,7 +209,7 @@ def from_table(table, fmt: Format, robot: ZRPRobot, drop_bad_rows: bool = False,
     repeated = sorted({c for c in names if names.count(c) > 1})
     if repeated:
         raise ValueError(f"{source}: column {repeated[0]!r} appears {names.count(repeated[0])} times")
-    raw = table.astype(str).set_axis(names, axis=1).reset_index(drop=True)
+    raw = pd.DataFrame({c: [str(v) for v in table.iloc[:, j]] for j, c in enumerate(names)}, dtype=object)
     return _checked(raw, np.arange(len(raw)), fmt, robot, drop_bad_rows, source, "row")
 
 
