@@ -17,7 +17,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import zrp_ga
-from zrp_ga import kinematics, robots
+from zrp_ga import config, kinematics, robots
 from zrp_ga.measurements import Measurements
 
 ARM = robots.load("puma560")
@@ -194,3 +194,17 @@ def test_bad_validation_named_and_wrong_type_refused():
         zrp_ga.calibrate(ARM, (Q, P), validation=_bad("nan"), algorithm="lm")
     with pytest.raises(TypeError, match=r"^data: expected a measurement file, a pandas DataFrame.*got ndarray"):
         zrp_ga.calibrate(ARM, np.column_stack([Q, P]), algorithm="lm")
+
+
+@pytest.mark.parametrize(
+    "settings, expected",
+    [
+        ({"crossover": "sbxx"}, r"^In 'config': Could not find 'crossover/sbxx'; available options in 'crossover': blend, "),
+        ({"population": {"mu": "abc"}}, r"^Value 'abc' of type 'str' could not be converted to Integer \(key: population.mu\)$"),
+        ({"problem": {"n_poses": -3}}, r"^problem.n_poses: must be at least 1, got -3$"),
+    ],
+)
+def test_bad_values_are_config_errors_on_one_line_as_on_the_command_line(settings, expected):
+    with pytest.raises(config.ConfigError, match=expected) as exc:
+        zrp_ga.calibrate("puma560", algorithm="lm", **settings)
+    assert "\n" not in str(exc.value)

@@ -75,6 +75,17 @@ def _value(v: Any) -> str:
     return "null" if v is None else str(v).lower() if isinstance(v, bool) else str(v)
 
 
+def _load(overrides: list[str]):
+    """The composed config; a value Hydra or OmegaConf refuses is a ConfigError on one line, as
+    ``zrp-ga`` says it (the key, or the options of a config group)."""
+    try:
+        return config.load(overrides)
+    except Exception as exc:
+        if type(exc).__module__.split(".")[0] in ("hydra", "omegaconf"):
+            raise config.ConfigError(errors.one_line(exc)) from None
+        raise
+
+
 def _check_keys(settings: dict[str, Any], cfg, where: str = "") -> None:
     """A TypeError naming a keyword (or a key of a dict keyword) the config does not have, and
     the closest ones it has."""
@@ -148,12 +159,12 @@ def _calibrate(robot, data, validation, algorithm: str, seed: int, out, progress
     measured_problem = data is not None and not isinstance(settings.get("problem"), str)  # problem={...}: its keys
     choices = {k: v for k, v in settings.items() if not isinstance(v, dict)}
     first = _overrides(algorithm, seed, {})
-    _check_keys(settings, config.load(["problem=measured"] * measured_problem + first))
-    _check_keys(settings, config.load(["problem=measured"] * measured_problem + _overrides(algorithm, seed, choices)))
+    _check_keys(settings, _load(["problem=measured"] * measured_problem + first))
+    _check_keys(settings, _load(["problem=measured"] * measured_problem + _overrides(algorithm, seed, choices)))
     over = _overrides(algorithm, seed, settings)
     if measured_problem:
         over.insert(0, "problem=measured")
-    cfg = config.load(over + ["problem.calibration_file=memory"] if data is not None else over)
+    cfg = _load(over + ["problem.calibration_file=memory"] if data is not None else over)
     arm = robot if isinstance(robot, ZRPRobot) else robots.load(**_robot_source(robot))
     if data is None:
         task = config.instantiate(cfg.problem, "problem", robot=arm, run_seed=seed)
