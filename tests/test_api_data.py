@@ -208,3 +208,13 @@ def test_bad_values_are_config_errors_on_one_line_as_on_the_command_line(setting
     with pytest.raises(config.ConfigError, match=expected) as exc:
         zrp_ga.calibrate("puma560", algorithm="lm", **settings)
     assert "\n" not in str(exc.value)
+
+
+def test_registration_warning_names_a_row_of_in_memory_data():
+    """A joint's zero 0.3 rad off: the registered nominal arm is far from the points, and the
+    warning names the worst point as a row of the table (counted from 0), not a file line."""
+    q = Q.copy()
+    q[:, 1] += 0.3
+    with pytest.warns(zrp_ga.ZrpGaWarning, match=r"worst: row \d+, ") as record:
+        zrp_ga.calibrate(ARM, pd.DataFrame(_columns(q, P)), algorithm="lm")
+    assert not any("line" in str(w.message) for w in record if "registered nominal" in str(w.message))

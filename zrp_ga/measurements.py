@@ -109,7 +109,8 @@ class Measurements:
     optional position weights (M, 3) on the position errors, the positions' standard deviations
     ``std`` (M, 3) m; which tool point each row measured, ``tool`` (M,) indices into
     ``tool_names`` (None: one tool); where the rows came from (``source`` and each row's file
-    ``lines``) and the ``units`` (length, angle) the file was read in."""
+    ``lines``, or rows of in-memory data: ``row_name``) and the ``units`` (length, angle) the file
+    was read in."""
 
     q: Array
     p: Array
@@ -121,6 +122,7 @@ class Measurements:
     tool: NDArray[np.int64] | None = None
     tool_names: tuple[str, ...] = ()
     units: tuple[str, str] = ("m", "rad")
+    row_name: str = "line"  # what ``lines`` count: a file's lines, or an in-memory table's rows (from 0)
 
     def __post_init__(self) -> None:
         q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -157,6 +159,10 @@ class Measurements:
         """Tool index of every row (M,): zeros when the data name no tools."""
         return np.zeros(self.M, dtype=np.int64) if self.tool is None else self.tool
 
+    def where(self, row: int) -> str:
+        """Row ``row`` as messages name it (``line 12`` of a file, ``row 11`` of a DataFrame)."""
+        return f"{self.row_name} {self.lines[row]}"
+
     def for_calibration(self, orientation: bool = False, weights: bool = False) -> Measurements:
         """What a problem sees: orientations only if asked; with ``weights``, each position error
         weighted by the median standard deviation over its own (so the cost stays in metres)."""
@@ -181,7 +187,7 @@ class Measurements:
         for k, name in enumerate(self.tool_names):
             if name not in index:
                 row = int(np.flatnonzero(self.tool == k)[0])
-                raise ValueError(f"{self.source}, line {self.lines[row]}, column 'tool': tool {name!r} is neither among the "
+                raise ValueError(f"{self.source}, {self.where(row)}, column 'tool': tool {name!r} is neither among the "
                                  f"calibration's tools ({', '.join(names)}) nor a known tool (problem.known_tools)")  # fmt: skip
         remap = np.array([index[name] for name in self.tool_names], dtype=np.int64)
         return dataclasses.replace(self, tool=remap[self.tool], tool_names=names)
@@ -226,7 +232,8 @@ def _checked(raw, lines, fmt: Format, robot: ZRPRobot, drop_bad_rows: bool, sour
     if len(values) == 0:
         raise ValueError(f"{path}: no measurement rows")
     values, lines, tools = _drop_repeats(path, values, lines, tools, drop_bad_rows, row)
-    return _measurements(fmt, robot, columns, values, lines, tools, units, source)
+    m = _measurements(fmt, robot, columns, values, lines, tools, units, source)
+    return m if row == "line" else dataclasses.replace(m, row_name=row)
 
 
 def _check_units(path: Path | str, fmt: Format) -> None:

@@ -238,7 +238,7 @@ def _registration_warnings(robot: ZRPRobot, reg: Registration, calib: Measuremen
         return []
     worst = int(np.argmax(reg.errors))
     return [f"the registered nominal {robot.name} is {reg.rms * 1e3:.4g} mm RMS off the calibration points (more than "
-            f"{FAR_REGISTRATION:.0%} of its {reach:.3g} m reach; worst: line {calib.lines[worst]}, {reg.errors[worst] * 1e3:.4g} mm): "
+            f"{FAR_REGISTRATION:.0%} of its {reach:.3g} m reach; worst: {calib.where(worst)}, {reg.errors[worst] * 1e3:.4g} mm): "
             f"check the robot file, the joint order, zero positions and directions, and the units (read as "
             f"{calib.units[0]} and {calib.units[1]})"]  # fmt: skip
 
