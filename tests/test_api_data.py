@@ -126,8 +126,8 @@ def test_validation_worse_than_nominal_is_a_python_warning():
     "settings, expected",
     [
         ({"crosover": "sbx"}, r"keyword argument 'crosover'; did you mean 'crossover'"),
-        ({"population": {"mux": 50}}, r"population=\{'mux': \.\.\.\}; did you mean 'mu'"),
-        ({"problem": {"n_pose": 5}}, r"problem=\{'n_pose': \.\.\.\}; did you mean 'n_poses'"),
+        ({"population": {"mux": 50}}, r"key 'mux' in population=\{\.\.\.\}; did you mean 'mu'"),
+        ({"problem": {"n_pose": 5}}, r"key 'n_pose' in problem=\{\.\.\.\}; did you mean 'n_poses'"),
     ],
 )
 def test_misspelt_keywords_are_type_errors_naming_the_closest(settings, expected):
@@ -136,7 +136,7 @@ def test_misspelt_keywords_are_type_errors_naming_the_closest(settings, expected
 
 
 def test_misspelt_key_of_the_measured_problem():
-    with pytest.raises(TypeError, match=r"problem=\{'drop_bad_row': \.\.\.\}; did you mean 'drop_bad_rows'"):
+    with pytest.raises(TypeError, match=r"key 'drop_bad_row' in problem=\{\.\.\.\}; did you mean 'drop_bad_rows'"):
         zrp_ga.calibrate(ARM, (Q, P), algorithm="lm", problem={"drop_bad_row": True})
 
 

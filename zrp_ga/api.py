@@ -96,7 +96,7 @@ def _check_keys(settings: dict[str, Any], cfg, where: str = "") -> None:
             valid = sorted(k for k in cfg if k != "hydra")
             close = difflib.get_close_matches(str(key), valid, n=3)
             hint = f"; did you mean {' or '.join(map(repr, close))}?" if close else f"; valid: {', '.join(valid)}"
-            name = f"{where}{{{key!r}: ...}}" if where else f"keyword argument {key!r}"
+            name = f"key {key!r} in {where}{{...}}" if where else f"keyword argument {key!r}"
             raise TypeError(f"calibrate() got an unexpected {name}{hint}")
         if isinstance(value, dict):
             if not isinstance(cfg[key], DictConfig):
@@ -158,8 +158,8 @@ def _calibrate(robot, data, validation, algorithm: str, seed: int, out, progress
 
     measured_problem = data is not None and not isinstance(settings.get("problem"), str)  # problem={...}: its keys
     choices = {k: v for k, v in settings.items() if not isinstance(v, dict)}
-    first = _overrides(algorithm, seed, {})
-    _check_keys(settings, _load(["problem=measured"] * measured_problem + first))
+    first = _overrides(algorithm, seed, {})  # the keywords first: a misspelt one would stop Hydra
+    _check_keys(dict.fromkeys(settings), _load(["problem=measured"] * measured_problem + first))
     _check_keys(settings, _load(["problem=measured"] * measured_problem + _overrides(algorithm, seed, choices)))
     over = _overrides(algorithm, seed, settings)
     if measured_problem:
