@@ -8,7 +8,7 @@ from typing import Any
 
 
 def __getattr__(name: str) -> Any:
-    """``__version__`` and ``calibrate`` on first use: importing the package stays cheap."""
+    """``__version__``, ``calibrate`` and ``ZrpGaWarning`` on first use: importing the package stays cheap."""
     if name == "__version__":
         from importlib import metadata
 
@@ -20,9 +20,13 @@ def __getattr__(name: str) -> Any:
         from zrp_ga.api import calibrate
 
         return calibrate
+    if name == "ZrpGaWarning":  # the class of every warning zrp_ga gives inside the API
+        from zrp_ga.errors import ZrpGaWarning
+
+        return ZrpGaWarning
     if name == "compensate":  # zrp_ga.compensation: a calibration turned into a corrected program
         return __import__("zrp_ga.compensation", fromlist=["compensate"]).compensate
     raise AttributeError(f"module 'zrp_ga' has no attribute {name!r}")
 
 
-__all__ = ["calibrate", "compensate"]
+__all__ = ["ZrpGaWarning", "calibrate", "compensate"]

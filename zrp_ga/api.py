@@ -15,12 +15,13 @@ True
 from __future__ import annotations
 
 import dataclasses
+import difflib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from zrp_ga import config
+from zrp_ga import config, errors
 from zrp_ga.algorithms import Result
 from zrp_ga.measurements import Measurements
 from zrp_ga.problems import Task
@@ -74,6 +75,35 @@ def _value(v: Any) -> str:
     return "null" if v is None else str(v).lower() if isinstance(v, bool) else str(v)
 
 
+def _load(overrides: list[str]):
+    """The composed config; a value Hydra or OmegaConf refuses is a ConfigError on one line, as
+    ``zrp-ga`` says it (the key, or the options of a config group)."""
+    try:
+        return config.load(overrides)
+    except Exception as exc:
+        if type(exc).__module__.split(".")[0] in ("hydra", "omegaconf"):
+            raise config.ConfigError(errors.one_line(exc)) from None
+        raise
+
+
+def _check_keys(settings: dict[str, Any], cfg, where: str = "") -> None:
+    """A TypeError naming a keyword (or a key of a dict keyword) the config does not have, and
+    the closest ones it has."""
+    from omegaconf import DictConfig
+
+    for key, value in settings.items():
+        if key not in cfg:
+            valid = sorted(k for k in cfg if k != "hydra")
+            close = difflib.get_close_matches(str(key), valid, n=3)
+            hint = f"; did you mean {' or '.join(map(repr, close))}?" if close else f"; valid: {', '.join(valid)}"
+            name = f"key {key!r} in {where}{{...}}" if where else f"keyword argument {key!r}"
+            raise TypeError(f"calibrate() got an unexpected {name}{hint}")
+        if isinstance(value, dict):
+            if not isinstance(cfg[key], DictConfig):
+                raise TypeError(f"calibrate(): {where}{key} is a single setting, not a dict of settings")
+            _check_keys(value, cfg[key], f"{where}{key}=")
+
+
 def calibrate(
     robot: ZRPRobot | str | Path,
     data: Measurements | str | Path | None = None,
@@ -86,30 +116,62 @@ def calibrate(
     **settings: Any,
 ) -> Calibration:
     """Calibrate ``robot`` (a :class:`ZRPRobot`, a preset name or a robot file) on ``data``
-    (:class:`~zrp_ga.measurements.Measurements` in an instrument's frame, or a measurement file
-    in the zrp CSV format), validated on ``validation``; without data, on the simulated problem
-    of the config (the paper's case study unless ``problem=...`` says otherwise).
+    measured in an instrument's frame, validated on ``validation``; without data, on the
+    simulated problem of the config (the paper's case study unless ``problem=...`` says otherwise).
+
+    ``data`` and ``validation``: a measurement file in the zrp CSV format, a pandas DataFrame
+    with its columns (``q1..qn, x, y, z`` and optionally ``rx, ry, rz``, ``sx, sy, sz``,
+    ``tool``), a tuple ``(q, positions[, orientations])`` of arrays ((M, n), (M, 3), and (M, 3)
+    angles or (M, 3, 3) rotation matrices), a dict of such arrays (keys ``q``, ``positions``,
+    ``orientations``, ``std``, ``tool``) or of columns, or
+    :class:`~zrp_ga.measurements.Measurements`. In-memory numbers get the checks a file gets
+    (one ValueError naming the row, counted from 0, and the column) and are in the units of
+    ``problem={"length_unit": ..., "angle_unit": ...}``: ``auto`` (the default) detects metres or
+    millimetres, radians or degrees, and converts.
 
     ``algorithm``: ``"ga"``, ``"lm"`` or ``"cmaes"``; ``settings``: any setting of ``zrp-ga``,
     e.g. ``population={"mu": 50, "generations": 30}``, ``crossover="sbx"``,
-    ``problem={"cost": "nonlinear"}``. ``out``: a directory to write the run's files into (as
-    ``zrp-ga`` writes them, with the same checks: a directory holding a run is refused).
+    ``problem={"cost": "nonlinear"}``; a keyword (or a key of a dict) the config does not have
+    is a TypeError naming the closest ones. ``out``: a directory to write the run's files into
+    (as ``zrp-ga`` writes them, with the same checks: a directory holding a run is refused).
+    Warnings are Python warnings of class :class:`zrp_ga.ZrpGaWarning`.
+
+    >>> import numpy as np, zrp_ga
+    >>> from zrp_ga import kinematics, robots
+    >>> arm = robots.load("puma560")
+    >>> q = np.random.default_rng(1).uniform(-1, 1, (40, 6))
+    >>> p = kinematics.forward(arm, q)[1]  # a perfect arm, in mm and degrees
+    >>> cal = zrp_ga.calibrate(arm, (np.degrees(q[:30]), 1e3 * p[:30]), validation=(np.degrees(q[30:]), 1e3 * p[30:]),
+    ...                        algorithm="lm")
+    >>> bool(cal.summary["validation_rms_mm"]["calibrated"] < 1e-6), cal.task.info["units"]
+    (True, {'length': 'mm', 'joint_angle': 'deg'})
     """
+    with errors.python_warnings():
+        return _calibrate(robot, data, validation, algorithm, seed, out, progress, settings)
+
+
+def _calibrate(robot, data, validation, algorithm: str, seed: int, out, progress: bool, settings: dict) -> Calibration:
     from zrp_ga import robots
     from zrp_ga.problems import measured
     from zrp_ga.run import build, execute
     from zrp_ga.run.shared import Cache
 
+    measured_problem = data is not None and not isinstance(settings.get("problem"), str)  # problem={...}: its keys
+    choices = {k: v for k, v in settings.items() if not isinstance(v, dict)}
+    first = _overrides(algorithm, seed, {})  # the keywords first: a misspelt one would stop Hydra
+    _check_keys(dict.fromkeys(settings), _load(["problem=measured"] * measured_problem + first))
+    _check_keys(settings, _load(["problem=measured"] * measured_problem + _overrides(algorithm, seed, choices)))
     over = _overrides(algorithm, seed, settings)
-    if data is not None and not isinstance(settings.get("problem"), str):  # problem={...}: the measured problem's keys
+    if measured_problem:
         over.insert(0, "problem=measured")
-    cfg = config.load(over + ["problem.calibration_file=memory"] if data is not None else over)
+    cfg = _load(over + ["problem.calibration_file=memory"] if data is not None else over)
     arm = robot if isinstance(robot, ZRPRobot) else robots.load(**_robot_source(robot))
     if data is None:
         task = config.instantiate(cfg.problem, "problem", robot=arm, run_seed=seed)
     else:
         conf = config.section(config.MeasuredConf, {k: v for k, v in cfg.problem.items() if k != "_target_"}, "problem")
-        task = measured.from_measurements(arm, _measurements(data, arm, conf), _measurements(validation, arm, conf), conf)
+        calib, val = _measurements(data, arm, conf, "data"), _measurements(validation, arm, conf, "validation")
+        task = measured.from_measurements(arm, calib, val, conf)
     cache = Cache()  # the instance is the one built here, not the config's
     prepared = build.prepare(cfg, None if out is None else Path(out), cache=cache, task=task)
     if out is None:
@@ -126,10 +188,94 @@ def _robot_source(robot: str | Path) -> dict:
     return {"name": str(robot)} if str(robot) in robots.names() else {"file": str(robot)}
 
 
-def _measurements(data, robot: ZRPRobot, c: config.MeasuredConf) -> Measurements | None:
-    if data is None or isinstance(data, Measurements):
-        return data
+def _measurements(data, robot: ZRPRobot, c: config.MeasuredConf, what: str) -> Measurements | None:
+    """``data`` read, or checked and converted as a file is (units from ``problem.length_unit``
+    and ``problem.angle_unit``, ``auto`` detected), whatever form it takes."""
+    if data is None:
+        return None
     from zrp_ga import measurements
 
     fmt = measurements.zrp_format(robot.n, c.length_unit, c.angle_unit, c.orientation_convention)
-    return measurements.read(Path(data), fmt, robot, c.drop_bad_rows)
+    if isinstance(data, (str, Path)):
+        return measurements.read(Path(data), fmt, robot, c.drop_bad_rows)
+    table, rotations = _table(data, what)
+    m = measurements.from_table(table, fmt, robot, c.drop_bad_rows, source=what)
+    return m if rotations is None else dataclasses.replace(m, R=rotations[m.lines])
+
+
+def _table(data, what: str):
+    """The zrp CSV format's table of in-memory ``data`` (a DataFrame, Measurements, a tuple
+    ``(q, positions[, orientations])`` or a dict of arrays or of columns), and its rotation
+    matrices when given as such (they have no unit)."""
+    import pandas as pd
+
+    if isinstance(data, pd.DataFrame):
+        return data, None
+    if isinstance(data, Measurements):
+        names = data.tool_names or ("tool",)
+        return _frame(what, data.q, data.p, None, data.std, None if data.tool is None else np.asarray(names)[data.tool]), data.R
+    if isinstance(data, (tuple, list)) and len(data) in (2, 3):
+        return _frame(what, *data), _rotations(what, data[2] if len(data) == 3 else None)
+    if isinstance(data, dict) and "q" in data:
+        known = {"q", "positions", "orientations", "std", "tool"}
+        for k in data:
+            if k not in known:
+                close = difflib.get_close_matches(str(k), sorted(known), n=1)
+                raise ValueError(f"{what}: unknown key {k!r}" + (f" (did you mean {close[0]!r}?)" if close else "")
+                                 + f"; known: {', '.join(sorted(known))}")  # fmt: skip
+        if "positions" not in data:
+            raise ValueError(f"{what}: missing key 'positions' (an (M, 3) array beside 'q')")
+        o = data.get("orientations")
+        return _frame(what, data["q"], data["positions"], o, data.get("std"), data.get("tool")), _rotations(what, o)
+    if isinstance(data, dict):
+        try:
+            return pd.DataFrame(data), None
+        except ValueError as exc:
+            raise ValueError(f"{what}: cannot be read as columns ({exc})") from None
+    raise TypeError(f"{what}: expected a measurement file, a pandas DataFrame, a tuple (q, positions[, orientations]) "
+                    f"of arrays, a dict of arrays or Measurements; got {type(data).__name__}")  # fmt: skip
+
+
+def _frame(what: str, q, p, o=None, std=None, tool=None):
+    """Arrays as the zrp CSV format's columns (q1..qn, x, y, z, rx, ry, rz, sx, sy, sz, tool)."""
+    import pandas as pd
+
+    q = _array(what, "q", q, 2)
+    M = len(q)
+    cols = {f"q{i + 1}": q[:, i] for i in range(q.shape[1])}
+    groups = [("positions", p, ("x", "y", "z")), ("std", std, ("sx", "sy", "sz"))]
+    if o is not None and np.ndim(o) == 2:
+        groups.append(("orientations", o, ("rx", "ry", "rz")))
+    for name, a, names in groups:
+        if a is not None:
+            a = _array(what, name, a, 2)
+            if a.shape != (M, 3):
+                raise ValueError(f"{what}: {name} must have shape ({M}, 3) (one row per row of q), got {a.shape}")
+            cols.update({c: a[:, j] for j, c in enumerate(names)})
+    if tool is not None:
+        tool = np.asarray(tool, dtype=str)
+        if tool.shape != (M,):
+            raise ValueError(f"{what}: tool must have shape ({M},) (one name per row of q), got {tool.shape}")
+        cols["tool"] = tool
+    return pd.DataFrame(cols)
+
+
+def _array(what: str, name: str, a, ndim: int) -> np.ndarray:
+    try:
+        a = np.asarray(a, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{what}: {name} is not an array of numbers ({exc})") from None
+    if a.ndim != ndim:
+        raise ValueError(f"{what}: {name} must be a {ndim}-D array (one row per measurement), got shape {a.shape}")
+    return a
+
+
+def _rotations(what: str, o) -> np.ndarray | None:
+    """Orientations given as rotation matrices (M, 3, 3); None for angles (M, 3) or none."""
+    if o is None or np.ndim(o) == 2:
+        return None
+    R = _array(what, "orientations", o, 3)
+    if R.shape[1:] != (3, 3):
+        raise ValueError(f"{what}: orientations must have shape (M, 3) (angles) or (M, 3, 3) (rotation matrices), "
+                         f"got {R.shape}")  # fmt: skip
+    return R

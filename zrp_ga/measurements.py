@@ -42,6 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from zrp_ga.errors import warn
 from zrp_ga.files import as_path, regular_file
 from zrp_ga.robot import MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
 
@@ -110,7 +111,8 @@ class Measurements:
     optional position weights (M, 3) on the position errors, the positions' standard deviations
     ``std`` (M, 3) m; which tool point each row measured, ``tool`` (M,) indices into
     ``tool_names`` (None: one tool); where the rows came from (``source`` and each row's file
-    ``lines``) and the ``units`` (length, angle) the file was read in."""
+    ``lines``, or rows of in-memory data: ``row_name``) and the ``units`` (length, angle) the file
+    was read in."""
 
     q: Array
     p: Array
@@ -122,6 +124,7 @@ class Measurements:
     tool: NDArray[np.int64] | None = None
     tool_names: tuple[str, ...] = ()
     units: tuple[str, str] = ("m", "rad")
+    row_name: str = "line"  # what ``lines`` count: a file's lines, or an in-memory table's rows (from 0)
 
     def __post_init__(self) -> None:
         q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -158,6 +161,10 @@ class Measurements:
         """Tool index of every row (M,): zeros when the data name no tools."""
         return np.zeros(self.M, dtype=np.int64) if self.tool is None else self.tool
 
+    def where(self, row: int) -> str:
+        """Row ``row`` as messages name it (``line 12`` of a file, ``row 11`` of a DataFrame)."""
+        return f"{self.row_name} {self.lines[row]}"
+
     def for_calibration(self, orientation: bool = False, weights: bool = False) -> Measurements:
         """What a problem sees: orientations only if asked; with ``weights``, each position error
         weighted by the median standard deviation over its own (so the cost stays in metres)."""
@@ -182,7 +189,7 @@ class Measurements:
         for k, name in enumerate(self.tool_names):
             if name not in index:
                 row = int(np.flatnonzero(self.tool == k)[0])
-                raise ValueError(f"{self.source}, line {self.lines[row]}, column 'tool': tool {name!r} is neither among the "
+                raise ValueError(f"{self.source}, {self.where(row)}, column 'tool': tool {name!r} is neither among the "
                                  f"calibration's tools ({', '.join(names)}) nor a known tool (problem.known_tools)")  # fmt: skip
         remap = np.array([index[name] for name in self.tool_names], dtype=np.int64)
         return dataclasses.replace(self, tool=remap[self.tool], tool_names=names)
@@ -194,19 +201,44 @@ def read(path: str | Path, fmt: Format, robot: ZRPRobot, drop_bad_rows: bool = F
     path = as_path(path, "measurement data", " or, for data in memory, zrp_ga.measurements.Measurements(q, p) with joint values q (M, n) in rad and positions p (M, 3) in m")
     _check_units(path, fmt)
     raw, lines = _table(path, fmt)
+    return _checked(raw, lines, fmt, robot, drop_bad_rows, str(path), "line")
+
+
+def from_table(table, fmt: Format, robot: ZRPRobot, drop_bad_rows: bool = False, source: str = "data") -> Measurements:
+    """In-memory measurements (a pandas DataFrame with the columns of ``fmt``, numbers or text)
+    checked and converted exactly as :func:`read` checks a file; a ValueError names ``source``,
+    the row (counted from 0, as ``DataFrame.iloc`` counts) and the column."""
+    import pandas as pd
+
+    _check_units(source, fmt)
+    if not isinstance(table, pd.DataFrame):
+        raise ValueError(f"{source}: expected a pandas DataFrame, got {type(table).__name__}")
+    names = [str(c).strip() for c in table.columns]
+    repeated = sorted({c for c in names if names.count(c) > 1})
+    if repeated:
+        raise ValueError(f"{source}: column {repeated[0]!r} appears {names.count(repeated[0])} times")
+    raw = pd.DataFrame({c: [str(v) for v in table.iloc[:, j]] for j, c in enumerate(names)}, dtype=object)
+    return _checked(raw, np.arange(len(raw)), fmt, robot, drop_bad_rows, source, "row")
+
+
+def _checked(raw, lines, fmt: Format, robot: ZRPRobot, drop_bad_rows: bool, source: str, row: str) -> Measurements:
+    """The table's cells (text) checked and converted: ``row`` is how its rows are named in
+    messages (``line`` of a file, ``row`` of a DataFrame)."""
+    path = source
     columns = _columns(path, raw, fmt, robot.n)
     values = np.column_stack([_numbers(raw[c], fmt.decimal) for c in columns]) if len(raw) else np.empty((0, len(columns)))
     tools = raw[fmt.tool].str.strip().to_numpy(dtype=str) if fmt.tool in raw.columns else None
     units = _resolve_units(path, fmt, robot, columns, values)
     bad = _bad_cells(values, columns, units, fmt, robot, tools)
-    values, raw, lines, tools = _drop(path, bad, raw, columns, values, lines, tools, drop_bad_rows)
+    values, raw, lines, tools = _drop(path, bad, raw, columns, values, lines, tools, drop_bad_rows, row)
     if len(values) == 0:
         raise ValueError(f"{path}: no measurement rows")
-    values, lines, tools = _drop_repeats(path, values, lines, tools, drop_bad_rows)
-    return _measurements(fmt, robot, columns, values, lines, tools, units, str(path))
+    values, lines, tools = _drop_repeats(path, values, lines, tools, drop_bad_rows, row)
+    m = _measurements(fmt, robot, columns, values, lines, tools, units, source)
+    return m if row == "line" else dataclasses.replace(m, row_name=row)
 
 
-def _check_units(path: Path, fmt: Format) -> None:
+def _check_units(path: Path | str, fmt: Format) -> None:
     for unit, table in ((fmt.length_unit, LENGTH), (fmt.angle_unit, ANGLE), (fmt.joint_unit, ANGLE)):
         if unit not in table and unit != AUTO:
             raise ValueError(f"{path}: unknown unit {unit!r}; known: {', '.join(table)}, {AUTO}")
@@ -255,7 +287,7 @@ def _check_header(path: Path, header: bytes, sep: str) -> None:
                          "rename or remove all but one")  # fmt: skip
 
 
-def _columns(path: Path, raw, fmt: Format, n: int) -> list[str]:
+def _columns(path: Path | str, raw, fmt: Format, n: int) -> list[str]:
     """The numeric columns to read: joints and positions, orientation (with a stated convention)
     and standard deviations when all three of a group are present."""
     if fmt.joints[0] == "q1":  # generic format: count the q columns to name a wrong joint count
@@ -294,7 +326,7 @@ class _Units:
     names: tuple[str, str, str]
 
 
-def _resolve_units(path: Path, fmt: Format, robot: ZRPRobot, columns: list[str], values: Array) -> _Units:
+def _resolve_units(path: Path | str, fmt: Format, robot: ZRPRobot, columns: list[str], values: Array) -> _Units:
     """The file's units, ``auto`` ones decided from its numbers (rows with a cell that no unit
     makes sensible left out: they are refused by line and column afterwards); a stated length
     unit that cannot be right for this arm is an error with a hint."""
@@ -316,7 +348,7 @@ def reach_m(robot: ZRPRobot) -> float:
     return float(np.linalg.norm(robot.b0[1:], axis=1).sum() + stroke)
 
 
-def resolve_length_unit(path: Path, points: Array, robot: ZRPRobot, unit: str) -> str:
+def resolve_length_unit(path: Path | str, points: Array, robot: ZRPRobot, unit: str) -> str:
     """``m`` or ``mm`` for measured points (M, 3) in file units. Points a tool on the arm can
     reach spread over at most twice its reach plus a tool (the spread: twice the median
     distance from the median point, so that absurd cells in fewer than half of the rows do not
@@ -405,7 +437,7 @@ def _far_points(values: Array, columns: list[str], fmt: Format, u: _Units, robot
     return out
 
 
-def _drop(path: Path, bad: list, raw, columns: list[str], values: Array, lines, tools, drop_bad_rows: bool):
+def _drop(path: Path | str, bad: list, raw, columns: list[str], values: Array, lines, tools, drop_bad_rows: bool, row: str = "line"):
     """Stop at the first bad cell, or (``drop_bad_rows``) drop the rows that have one."""
     if not bad:
         return values, raw, lines, tools
@@ -417,17 +449,17 @@ def _drop(path: Path, bad: list, raw, columns: list[str], values: Array, lines, 
             what = "empty" if text.strip() == "" else f"{text.strip()!r} is not a finite number"
         cells.append((int(lines[r]), names[j], what))
     line, col, what = cells[0]
-    first = f"{path}, line {line}, column {col!r}: {what}"
+    first = f"{path}, {row} {line}, column {col!r}: {what}"
     rows = np.unique([r for r, _, _ in bad])
     if not drop_bad_rows:
         more = f" ({len(cells) - 1} more bad cells in {len(rows)} rows)" if len(cells) > 1 else ""
         raise ValueError(first + more + "; set problem.drop_bad_rows=true to drop such rows")
-    log.warning("%s; dropped %d rows with bad cells (lines %s)", first, len(rows), _listed(lines[rows]))
+    warn(f"{first}; dropped {len(rows)} rows with bad cells ({row}s {_listed(lines[rows])})", log)
     keep = np.setdiff1d(np.arange(len(values)), rows)
     return values[keep], raw.iloc[keep], lines[keep], None if tools is None else tools[keep]
 
 
-def _drop_repeats(path: Path, values: Array, lines, tools, drop_bad_rows: bool):
+def _drop_repeats(path: Path | str, values: Array, lines, tools, drop_bad_rows: bool, row: str = "line"):
     """Rows that repeat an earlier row exactly (every number and the tool): a copy, not a new
     measurement (a tracker never reads the same point twice to the last digit)."""
     import pandas as pd
@@ -440,11 +472,11 @@ def _drop_repeats(path: Path, values: Array, lines, tools, drop_bad_rows: bool):
         return values, lines, tools
     first = int(np.flatnonzero(repeat)[0])
     same = int(np.flatnonzero((frame == frame.iloc[first]).all(axis=1).to_numpy())[0])
-    what = (f"{path}: {int(repeat.sum())} rows repeat earlier rows exactly (first: line {lines[first]} repeats "
-            f"line {lines[same]})")  # fmt: skip
+    what = (f"{path}: {int(repeat.sum())} rows repeat earlier rows exactly (first: {row} {lines[first]} repeats "
+            f"{row} {lines[same]})")  # fmt: skip
     if not drop_bad_rows:
         raise ValueError(what + "; remove them, or set problem.drop_bad_rows=true to drop them")
-    log.warning("%s; dropped them (lines %s)", what, _listed(lines[repeat]))
+    warn(f"{what}; dropped them ({row}s {_listed(lines[repeat])})", log)
     keep = ~repeat
     return values[keep], lines[keep], None if tools is None else tools[keep]
 

@@ -31,6 +31,7 @@ import numpy as np
 from zrp_ga import error_model, records, robot_files
 from zrp_ga.algorithms import Result
 from zrp_ga.config import Cost, Objective
+from zrp_ga.errors import warn
 from zrp_ga.problems import Task
 from zrp_ga.problems.protocol import SelfJudging
 from zrp_ga.run import directory
@@ -58,9 +59,9 @@ def diagnostics(task: Task, first: bool, key: str, cache: Cache, sweep: Path | N
     if d is None:
         d = cache.diagnostics[key] = directory.shared(sweep, key, lambda: _compute(task), "diagnostics")
     if d["rank"] < d["model_rank"] and first and directory.first_to_ask(sweep, task.name):
-        log.warning("the calibration poses identify %d of the %d parameter combinations the model can identify "
-                    "(%d parameters); more poses would help. Unidentifiable:\n  %s", d["rank"], d["model_rank"],
-                    d["n_params"], "\n  ".join(d["unidentifiable"]))  # fmt: skip
+        warn(f"the calibration poses identify {d['rank']} of the {d['model_rank']} parameter combinations the model can "
+             f"identify ({d['n_params']} parameters); more poses would help. Unidentifiable:\n  "
+             + "\n  ".join(d["unidentifiable"]), log)  # fmt: skip
     return d
 
 

@@ -22,6 +22,7 @@ import hydra
 from omegaconf import DictConfig
 
 from zrp_ga import config
+from zrp_ga.errors import one_line
 
 config.register()
 
@@ -114,20 +115,3 @@ def _register_launcher() -> None:
 
 def _stop(signum: int, frame: Any) -> None:
     raise KeyboardInterrupt
-
-
-def one_line(exc: BaseException) -> str:
-    """An error on one line: what is wrong and the key (or the options) it concerns."""
-    for e in (exc.__cause__, exc):
-        lines = [line.strip() for line in str(e or "").splitlines() if line.strip()]
-        key = next((line.split(":", 1)[1].strip() for line in lines if line.startswith("full_key:")), None)
-        if key:
-            return f"{lines[0]} (key: {key})"
-    lines = [line.strip() for line in str(exc).splitlines() if line.strip()] or [type(exc).__name__]
-    heads = [k for k, line in enumerate(lines) if line.startswith("Available options in")]
-    if heads:
-        options = [line for line in lines[heads[0] + 1 :] if not line.startswith(("Config search path", "provider="))]
-        return f"{lines[0]}; {lines[heads[0]].rstrip(':').lower()}: {', '.join(options)}"
-    if isinstance(exc, OSError) and exc.filename:
-        return f"{exc.filename}: {exc.strerror}"
-    return lines[0]

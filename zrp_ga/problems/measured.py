@@ -34,6 +34,7 @@ import numpy as np
 
 from zrp_ga import error_model, measurements, metrics, records
 from zrp_ga.config import Format, MeasuredConf, Ranges, section
+from zrp_ga.errors import warn
 from zrp_ga.layout import Layout
 from zrp_ga.measurements import Measurements
 from zrp_ga.metrics import Judge
@@ -188,7 +189,7 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
     sets = {"calibration": calib, **({"validation": val} if val is not None else {})}
     judge = Judge(layout, nominal, validation, registration=c.validation_registration.value)
     for w in warnings:
-        log.warning(w)
+        warn(w, log)
     return MeasuredTask(name, problem, judge, robot, info, warnings, registration=reg, sets=sets)
 
 
@@ -238,7 +239,7 @@ def _registration_warnings(robot: ZRPRobot, reg: Registration, calib: Measuremen
         return []
     worst = int(np.argmax(reg.errors))
     return [f"the registered nominal {robot.name} is {reg.rms * 1e3:.4g} mm RMS off the calibration points (more than "
-            f"{FAR_REGISTRATION:.0%} of its {reach:.3g} m reach; worst: line {calib.lines[worst]}, {reg.errors[worst] * 1e3:.4g} mm): "
+            f"{FAR_REGISTRATION:.0%} of its {reach:.3g} m reach; worst: {calib.where(worst)}, {reg.errors[worst] * 1e3:.4g} mm): "
             f"check the robot file, the joint order, zero positions and directions, and the units (read as "
             f"{calib.units[0]} and {calib.units[1]})"]  # fmt: skip
 

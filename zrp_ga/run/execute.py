@@ -19,6 +19,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 
 from zrp_ga.config import ConfigError
+from zrp_ga.errors import warn
 from zrp_ga.run import directory
 from zrp_ga.run.build import Prepared, build, prepare, task_config
 from zrp_ga.run.directory import Sweep
@@ -89,7 +90,7 @@ def execute(p: Prepared, out: Path | None, progress: bool, sweep: Sweep | None =
     if out is not None:
         summary.write(out, task, result, written, x)
     for w in written["warnings"]:
-        log.warning(w)
+        warn(w, log)
     return result, written
 
 

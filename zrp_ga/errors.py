@@ -1,0 +1,60 @@
+"""The package's warning class and the one helper every user-facing warning goes through.
+
+On the command line a warning is a log line (as Hydra's logging shows it); inside
+:func:`python_warnings` (what :func:`zrp_ga.calibrate` runs in) it is a Python warning of class
+:class:`ZrpGaWarning`, which a notebook catches or filters with the :mod:`warnings` module
+(``warnings.simplefilter("ignore", zrp_ga.ZrpGaWarning)``, ``pytest.warns``), each message once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import logging
+import warnings
+from collections.abc import Iterator
+
+
+class ZrpGaWarning(UserWarning):
+    """A warning of zrp_ga: the data, the problem or the result deserve a look."""
+
+
+_seen: contextvars.ContextVar[set[str] | None] = contextvars.ContextVar("zrp_ga_python_warnings", default=None)
+
+
+def warn(message: str, log: logging.Logger | None = None, category: type[ZrpGaWarning] = ZrpGaWarning) -> None:
+    """``message`` as a Python warning inside :func:`python_warnings` (once per message), else
+    as a warning of ``log`` (the caller's logger)."""
+    seen = _seen.get()
+    if seen is None:
+        (log or logging.getLogger("zrp_ga")).warning("%s", message)
+    elif message not in seen:
+        seen.add(message)
+        warnings.warn(message, category, stacklevel=3)
+
+
+@contextlib.contextmanager
+def python_warnings() -> Iterator[None]:
+    """Within: warnings are Python warnings (:func:`warn`) instead of log lines."""
+    token = _seen.set(set())
+    try:
+        yield
+    finally:
+        _seen.reset(token)
+
+
+def one_line(exc: BaseException) -> str:
+    """An error on one line: what is wrong and the key (or the options) it concerns."""
+    for e in (exc.__cause__, exc):
+        lines = [line.strip() for line in str(e or "").splitlines() if line.strip()]
+        key = next((line.split(":", 1)[1].strip() for line in lines if line.startswith("full_key:")), None)
+        if key:
+            return f"{lines[0]} (key: {key})"
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()] or [type(exc).__name__]
+    heads = [k for k, line in enumerate(lines) if line.startswith("Available options in")]
+    if heads:
+        options = [line for line in lines[heads[0] + 1 :] if not line.startswith(("Config search path", "provider="))]
+        return f"{lines[0]}; {lines[heads[0]].rstrip(':').lower()}: {', '.join(options)}"
+    if isinstance(exc, OSError) and exc.filename:
+        return f"{exc.filename}: {exc.strerror}"
+    return lines[0]
