@@ -62,9 +62,11 @@ def prepare(cfg: DictConfig, out: Path | None, overrides: Sequence[str] = (), ch
         recorded = state.pop("inputs", None)
         p = build(cfg, out, state, choices, cache, task)
         check_inputs(p, recorded)
+        _not_in_use(out)
         return p
     elif out is not None:
         check_writable(out)
+        _not_in_use(out)
         if directory.holds_run(out):
             raise ConfigError(f"output directory {out} already holds a run; choose another hydra.run.dir, "
                               f"or continue it with resume={out}")  # fmt: skip
@@ -116,6 +118,14 @@ def _stamps(cfg: DictConfig) -> list:
 def _instance(cfg: DictConfig) -> Any:
     robot = config.instantiate(cfg.robot, "robot")
     return config.instantiate(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
+
+
+def _not_in_use(out: Path) -> None:
+    """Refuse ``out`` now, before any work, when another run holds its lock (the run itself
+    holds it throughout: :func:`zrp_ga.run.execute.run_prepared`)."""
+    if out.is_dir() and os.access(out, os.W_OK):
+        with directory.locked(out):
+            pass
 
 
 def check_writable(out: Path) -> None:
