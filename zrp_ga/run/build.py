@@ -66,10 +66,10 @@ def prepare(cfg: DictConfig, out: Path | None, overrides: Sequence[str] = (), ch
         return p
     elif out is not None:
         check_writable(out)
-        _not_in_use(out)
         if directory.holds_run(out):
             raise ConfigError(f"output directory {out} already holds a run; choose another hydra.run.dir, "
                               f"or continue it with resume={out}")  # fmt: skip
+        _not_in_use(out)
     return build(cfg, out, state, choices or {}, cache, task)
 
 

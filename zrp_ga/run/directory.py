@@ -3,7 +3,10 @@
 A run directory holds ``convergence.csv`` (written as the run goes), ``checkpoint.npz``,
 ``status.json`` (``running``, then ``done``, ``failed`` or ``interrupted``), and at the end
 ``summary.json``, ``best_params.csv``, ``initial_population.csv`` and the calibrated arm's
-files. A sweep directory holds one run directory per job, the manifest and, under ``.zrp_ga``,
+files. One run writes into a directory at a time: it holds ``.zrp_ga.lock`` (:func:`locked`)
+while it runs, and removes the temporary files (``.NAME.PID.tmp``) a killed or failed run left
+(:func:`remove_temporary`). A finished run whose files were damaged since (:func:`damage`) is
+not taken as finished. A sweep directory holds one run directory per job, the manifest and, under ``.zrp_ga``,
 what its jobs share (the identifiability and floor of each problem instance, computed once).
 
 The manifest: every job of a sweep appends its state to ``manifest.jsonl`` when it starts
