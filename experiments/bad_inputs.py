@@ -8,6 +8,7 @@ tests/test_bad_inputs_more.py (``zrp-ga``) and a few of ``zrp-ga-report``.
 from __future__ import annotations
 
 import importlib.util
+import os
 import subprocess
 import sys
 import tempfile
@@ -51,6 +52,35 @@ def _report_rows(folder: Path) -> list[tuple[str, str, str, str]]:
     return rows
 
 
+def _run_directory_rows(folder: Path) -> list[tuple[str, str, str, str]]:
+    """zrp-ga resuming a run whose robot file changed since its checkpoint, and a run into a
+    directory another run is writing into (its lock held here)."""
+    from zrp_ga import robots
+    from zrp_ga.run import directory
+
+    arm = folder / "arm.yaml"
+    arm.write_text(robots.path("puma560").read_text())
+    subprocess.run([sys.executable, "-m", "zrp_ga.app", "robot=file", f"robot.file={arm}", "problem.n_validation=5",
+                    "population.generations=2", "progress=false", f"hydra.run.dir={folder / 'run'}"],
+                   check=True, capture_output=True)  # fmt: skip
+    arm.write_text(arm.read_text().replace("a: 0.4318", "a: 0.4500"))
+    cases = [("changed input", "resuming a run whose robot file changed since its checkpoint", ["resume=DIR/run"])]
+    rows = []
+    for kind, what, args in cases:
+        proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", *(a.replace("DIR", str(folder)) for a in args)],
+                              capture_output=True, text=True, cwd=folder)  # fmt: skip
+        rows.append((kind, what, "zrp-ga " + " ".join(args), f"{proc.stderr.strip()} (exit {proc.returncode})"))
+    busy = folder / "busy"
+    busy.mkdir()
+    with directory.locked(busy):
+        proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem.n_validation=5", "population.generations=2",
+                               f"hydra.run.dir={busy}"], capture_output=True, text=True, cwd=folder)  # fmt: skip
+    line = proc.stderr.strip().replace(f"process {os.getpid()}", "process PID")
+    rows.append(("directory in use", "a run into a directory another run is writing into",
+                 "zrp-ga hydra.run.dir=DIR/busy ...", f"{line} (exit {proc.returncode})"))  # fmt: skip
+    return [(k, w, c, line.replace(str(folder), "DIR")) for k, w, c, line in rows]
+
+
 def main() -> None:
     cases = [(module, case) for module in (_cases(), _cases("test_bad_inputs_more")) for case in module.CASES]
     rows = []
@@ -65,6 +95,9 @@ def main() -> None:
         report = Path(tmp) / "report"
         report.mkdir()
         rows += [(k, w, c, line.replace(str(report), "DIR")) for k, w, c, line in _report_rows(report)]
+        runs = Path(tmp) / "runs"
+        runs.mkdir()
+        rows += _run_directory_rows(runs)
     lines = ["# Bad input and what the program says", "",
              "Every input the programs read is checked before any work: a bad one stops `zrp-ga` with one line "
              "on stderr, exit code 2, and no run directory (a report leaves out a damaged run by name and goes on). "

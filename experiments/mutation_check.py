@@ -132,6 +132,22 @@ PLANTS: list[dict] = [
     dict(name="robot-file-mm-factor", file="zrp_ga/robot_files.py",
          old='LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}', new='LENGTH_UNITS = {"m": 1.0, "mm": 1e-2}',
          tests=["tests/test_robot_files.py"], what="robot files: a millimetre read as 1e-2 m"),
+    # --- the run directory: resume, lock, damaged jobs, temporary files -------------------------
+    dict(name="resume-ignores-checkpoint", file="zrp_ga/run/build.py",
+         old="p = build(cfg, out, state, choices, cache, task)", new="p = build(cfg, out, None, choices, cache, task)",
+         tests=["tests/test_resume_checks.py"], what="resume starts the run over instead of continuing its checkpoint"),
+    dict(name="resume-skips-input-check", file="zrp_ga/run/build.py",
+         old="        check_inputs(p, recorded)\n", new="",
+         tests=["tests/test_resume_checks.py"], what="resume continues a checkpoint on a changed robot or data file"),
+    dict(name="lock-shared", file="zrp_ga/run/directory.py",
+         old="fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)", new="fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)",
+         tests=["tests/test_run_directory.py"], what="two runs may write into one directory (a shared lock)"),
+    dict(name="damaged-job-kept", file="zrp_ga/run/execute.py",
+         old='damaged = directory.damage(out) if directory.status(out) == "done" else None', new="damaged = None",
+         tests=["tests/test_run_directory.py"], what="a sweep job with a damaged summary or convergence log kept as finished"),
+    dict(name="checkpoint-tmp-left", file="zrp_ga/checkpoint.py",
+         old="        tmp.unlink(missing_ok=True)\n", new="",
+         tests=["tests/test_run_directory.py"], what="a failed checkpoint write leaves its temporary file"),
 ]
 
 

@@ -11,8 +11,7 @@
 - registration far off: a joint's zero position wrong in the file; the warning names the worst
   line and the 2% of the reach;
 - the optimiser diverged: a result without a finite cost gives the warning and the nominal arm.
-  A GA or CMA-ES run whose every cost is NaN should end there too; today both stop with a
-  traceback (``xfail``, strict: the marks go when this is fixed).
+  A GA or CMA-ES run whose every cost is NaN ends there too.
 """
 
 import json
@@ -177,9 +176,6 @@ def _all_nan(monkeypatch):
     monkeypatch.setattr(CalibrationProblem, "costs", broken)
 
 
-@pytest.mark.xfail(strict=True, raises=AttributeError,
-                   reason="GA.result() calls self.best_x.copy() when no cost was ever finite (best_x None): "
-                          "a traceback instead of the 'optimiser diverged' warning")  # fmt: skip
 def test_a_ga_whose_every_cost_is_nan_ends_with_the_diverged_warning(perturbed, monkeypatch):
     arm, cal, val, _ = perturbed
     _all_nan(monkeypatch)
@@ -188,9 +184,6 @@ def test_a_ga_whose_every_cost_is_nan_ends_with_the_diverged_warning(perturbed, 
 
 
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")  # cma, on the NaN costs
-@pytest.mark.xfail(strict=True, raises=ValueError,
-                   reason="CMA-ES with no finite cost hands a scalar genome to the validation callback "
-                          "(layout.unpack: cannot reshape array of size 1): a traceback instead of the warning")  # fmt: skip
 def test_cmaes_whose_every_cost_is_nan_ends_with_the_diverged_warning(perturbed, monkeypatch):
     arm, cal, val, _ = perturbed
     _all_nan(monkeypatch)

@@ -70,7 +70,11 @@ class Validation(Callback):
         self._last: tuple[bytes, dict] | None = None
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
-        x = np.asarray(algorithm.current()[0], dtype=float)
+        x = algorithm.current()[0]
+        if x is None:  # no finite cost yet (the optimiser diverged): nothing to judge
+            row.update(val_rms_mm=np.nan, val_max_mm=np.nan, param_err=np.nan)
+            return
+        x = np.asarray(x, dtype=float)
         if self._last is None or self._last[0] != x.tobytes():
             self._last = (x.tobytes(), self.judge(x))
         m = self._last[1]
@@ -162,10 +166,13 @@ class Progress(Callback):
 
 class Checkpoint(Callback):
     """``checkpoint.npz`` every ``every`` generations, after the last one, and on an interrupt
-    (the state after the last finished generation), with the run's config and its groups' options."""
+    (the state after the last finished generation), with the run's config, its groups' options and
+    ``inputs`` (hashes of the robot and data it ran on: :func:`zrp_ga.run.build.inputs`)."""
 
-    def __init__(self, path: str | Path, every: int, config: dict, choices: dict | None = None):
+    def __init__(self, path: str | Path, every: int, config: dict, choices: dict | None = None,
+                 inputs: dict | None = None):  # fmt: skip
         self.path, self.every, self.config, self.choices = Path(path), every, config, choices or {}
+        self.inputs = inputs or {}
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
         self.last = algorithm.state()
@@ -177,4 +184,4 @@ class Checkpoint(Callback):
             self.save()
 
     def save(self) -> None:
-        checkpoint.save(self.path, {**self.last, "config": self.config, "choices": self.choices})
+        checkpoint.save(self.path, {**self.last, "config": self.config, "choices": self.choices, "inputs": self.inputs})

@@ -1,7 +1,8 @@
 """Checkpoints that cannot run code when loaded: arrays in an ``.npz`` file, everything else
 (counters, random states, the run's config) as one JSON document inside it, read back with
 ``allow_pickle=False``. Written atomically (a temporary file, then a rename), so that a kill
-while writing leaves the previous checkpoint; a truncated or foreign file is refused with one
+while writing leaves the previous checkpoint (a failed write, e.g. a full disk, removes its
+temporary file and names the checkpoint); a truncated or foreign file is refused with one
 line."""
 
 from __future__ import annotations
@@ -22,9 +23,15 @@ def save(path: str | Path, state: dict) -> None:
     arrays = {k: v for k, v in state.items() if isinstance(v, np.ndarray)}
     rest = {k: v for k, v in state.items() if not isinstance(v, np.ndarray)}
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as f:
-        np.savez(f, __json__=np.array(json.dumps(rest)), **arrays)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as f:
+            np.savez(f, __json__=np.array(json.dumps(rest)), **arrays)
+        os.replace(tmp, path)
+    except BaseException as exc:  # a full disk, a kill: the previous checkpoint stays, the temporary file goes
+        tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and not exc.filename:  # name the file the error is about
+            raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
+        raise
 
 
 def load(path: str | Path) -> dict:

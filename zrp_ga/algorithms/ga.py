@@ -207,7 +207,7 @@ class GA(Algorithm):
         return max(self.gen / c.generations if c.generations else 0.0, self.nevals / c.max_evals if c.max_evals else 0.0)
 
     def result(self) -> Result:
-        return Result(self.best_x.copy(), self.best_cost, self.nevals, self.stop_reason, *self.initial)
+        return Result(None if self.best_x is None else self.best_x.copy(), self.best_cost, self.nevals, self.stop_reason, *self.initial)
 
     # --- checkpoints (DEAP's recipe: population, best, both random states) ---------------------
     def state(self) -> dict:

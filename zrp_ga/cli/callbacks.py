@@ -15,7 +15,7 @@ from typing import Any
 from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from hydra.types import RunMode
-from omegaconf import DictConfig
+from omegaconf import DictConfig, open_dict, read_write
 
 from zrp_ga.run import directory
 
@@ -37,11 +37,16 @@ class Prepare(Callback):
         from zrp_ga.run import build
 
         try:
-            build.prepare(config, Path(config.hydra.run.dir), list(config.hydra.overrides.task))
+            p = build.prepare(config, Path(config.hydra.run.dir), list(config.hydra.overrides.task))
         except (ValueError, OSError) as exc:
             raise Refused(exc) from None
         except MemoryError as exc:  # not a warning, and not the work again (zrp_ga.budget's estimate missed)
             raise Refused(MemoryError(f"out of memory before the run started ({exc}); see zrp_ga.budget")) from None
+        if config.get("resume") and not any(o.startswith("hydra.run.dir=") for o in config.hydra.overrides.hydra):
+            # Hydra's own files (log, config) go into the resumed run's directory, not a new outputs/DATE/TIME
+            with open_dict(config.hydra), read_write(config.hydra):
+                config.hydra.run.dir = str(p.out)
+                config.hydra.output_subdir = ".hydra/resume"
 
 
 def _ours(hydra: DictConfig) -> bool:

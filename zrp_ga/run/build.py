@@ -59,11 +59,17 @@ def prepare(cfg: DictConfig, out: Path | None, overrides: Sequence[str] = (), ch
     if cfg.get("resume"):
         out, state, cfg = _resume(cfg, overrides)
         choices = state.pop("choices", None) or {}
+        recorded = state.pop("inputs", None)
+        p = build(cfg, out, state, choices, cache, task)
+        check_inputs(p, recorded)
+        _not_in_use(out)
+        return p
     elif out is not None:
         check_writable(out)
         if directory.holds_run(out):
             raise ConfigError(f"output directory {out} already holds a run; choose another hydra.run.dir, "
                               f"or continue it with resume={out}")  # fmt: skip
+        _not_in_use(out)
     return build(cfg, out, state, choices or {}, cache, task)
 
 
@@ -89,15 +95,39 @@ def build(cfg: DictConfig, out: Path | None, state: dict | None, choices: dict, 
 
 
 def instance_key(cfg: DictConfig) -> str:
-    """The problem instance's key: the resolved robot and problem settings and the seed, as JSON."""
+    """The problem instance's key: the resolved robot and problem settings and the seed, as
+    JSON, with the size and modification time of the files they name (an edited file is another
+    instance)."""
     parts = {k: OmegaConf.to_container(cfg[k], resolve=True, enum_to_str=True) for k in ("robot", "problem")}
-    return json.dumps({**parts, "seed": int(cfg.seed)}, sort_keys=True)
+    return json.dumps({**parts, "seed": int(cfg.seed), "files": _stamps(cfg)}, sort_keys=True)
+
+
+def _stamps(cfg: DictConfig) -> list:
+    from zrp_ga.data import resolve
+
+    out = []
+    for name in (cfg.robot.get("file"), *(cfg.problem.get(k) for k in DATA_KEYS)):
+        if name:
+            try:
+                st = resolve(str(name)).stat()
+                out.append([str(name), st.st_size, st.st_mtime_ns])
+            except OSError:
+                out.append([str(name), None, None])
+    return out
 
 
 def _instance(cfg: DictConfig) -> Any:
     robot = config.instantiate(cfg.robot, "robot")
     budget.check_config(cfg, robot)  # memory and time, before the problem is built (zrp_ga.budget)
     return config.instantiate(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
+
+
+def _not_in_use(out: Path) -> None:
+    """Refuse ``out`` now, before any work, when another run holds its lock (the run itself
+    holds it throughout: :func:`zrp_ga.run.execute.run_prepared`)."""
+    if out.is_dir() and os.access(out, os.W_OK):
+        with directory.locked(out):
+            pass
 
 
 def check_writable(out: Path) -> None:
@@ -130,5 +160,58 @@ def _resume(cfg: DictConfig, overrides: Sequence[str]) -> tuple[Path, dict, Dict
 
 def typed(stored: dict) -> DictConfig:
     """A config read back from a file (plain values: Enums as their strings) with the schema's
-    types again, so that a resumed run sees the same config as the run it continues."""
-    return OmegaConf.merge(OmegaConf.structured(config.Config), stored)
+    types again, so that a resumed run sees the same config as the run it continues; a value
+    the schema refuses is a ConfigError naming the key."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        return OmegaConf.merge(OmegaConf.structured(config.Config), stored)
+    except OmegaConfBaseException as exc:
+        key = getattr(exc, "full_key", None) or "the config"
+        raise ConfigError(f"resume: the checkpoint's config is not valid at {key}: {str(exc).splitlines()[0]}") from None
+
+
+DATA_KEYS = ("calibration_file", "validation_file")  # the problem's files, hashed into a checkpoint
+
+
+def inputs(cfg: DictConfig, task: Any) -> dict[str, str]:
+    """What a run's result depends on besides its config, as hashes: the robot as built (its
+    arrays and joint types) and the contents of the problem's data files, so that a resumed run
+    can tell that they changed since its checkpoint."""
+    import hashlib
+
+    import numpy as np
+
+    from zrp_ga.data import resolve
+
+    h = hashlib.sha256()
+    robot = task.robot
+    for f in dataclasses.fields(robot):
+        v = getattr(robot, f.name)
+        if isinstance(v, np.ndarray):
+            h.update(f.name.encode() + np.ascontiguousarray(v, dtype=float).tobytes())
+        elif isinstance(v, str):
+            h.update(f.name.encode() + v.encode())
+    out = {"robot": h.hexdigest()}
+    for key in DATA_KEYS:
+        name = cfg.problem.get(key)
+        if name:
+            try:
+                out[f"problem.{key}"] = hashlib.sha256(resolve(str(name)).read_bytes()).hexdigest()
+            except OSError:
+                out[f"problem.{key}"] = "unreadable"
+    return out
+
+
+def check_inputs(p: Prepared, recorded: dict | None, what: str = "resume") -> None:
+    """Refuse to continue a checkpoint whose robot or data files (``recorded``:
+    :func:`inputs` when it was written) are not those of ``p`` now."""
+    if not recorded:
+        return
+    now = inputs(p.cfg, p.task)
+    changed = [k for k in recorded if now.get(k) != recorded[k]]
+    if changed:
+        k = changed[0]
+        name = "the robot" if k == "robot" else f"{k} ({p.cfg.problem.get(k.split('.', 1)[1])})"
+        raise ConfigError(f"{what}: {name} changed since the checkpoint in {p.out} was written; "
+                          "the run cannot continue on it (start a new run)")  # fmt: skip

@@ -3,7 +3,10 @@
 A run directory holds ``convergence.csv`` (written as the run goes), ``checkpoint.npz``,
 ``status.json`` (``running``, then ``done``, ``failed`` or ``interrupted``), and at the end
 ``summary.json``, ``best_params.csv``, ``initial_population.csv`` and the calibrated arm's
-files. A sweep directory holds one run directory per job, the manifest and, under ``.zrp_ga``,
+files. One run writes into a directory at a time: it holds ``.zrp_ga.lock`` (:func:`locked`)
+while it runs, and removes the temporary files (``.NAME.PID.tmp``) a killed or failed run left
+(:func:`remove_temporary`). A finished run whose files were damaged since (:func:`damage`) is
+not taken as finished. A sweep directory holds one run directory per job, the manifest and, under ``.zrp_ga``,
 what its jobs share (the identifiability and floor of each problem instance, computed once).
 
 The manifest: every job of a sweep appends its state to ``manifest.jsonl`` when it starts
@@ -22,13 +25,14 @@ such a fragment.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import datetime
 import hashlib
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +42,7 @@ STATUS = "status.json"
 CHECKPOINT = "checkpoint.npz"
 BEST_PARAMS = "best_params.csv"
 INITIAL_POPULATION = "initial_population.csv"
-RUN_FILES = (CONVERGENCE, SUMMARY)  # a directory holding either holds a run
+RUN_FILES = (CONVERGENCE, SUMMARY, STATUS, CHECKPOINT, BEST_PARAMS, INITIAL_POPULATION)  # a directory holding any holds a run
 MANIFEST = "manifest.jsonl"
 TABLE = "manifest.csv"
 COLUMNS = ["job", "overrides", "dir", "status", "error", "time"]
@@ -49,6 +53,40 @@ SHARED = ".zrp_ga"  # what the jobs of a sweep share, in the sweep directory
 def holds_run(out: Path) -> bool:
     """Whether ``out`` already holds a run's files."""
     return any((out / f).exists() for f in RUN_FILES)
+
+
+LOCK = ".zrp_ga.lock"  # held by the process writing into a run directory (fcntl.flock)
+
+
+@contextlib.contextmanager
+def locked(out: Path) -> Iterator[None]:
+    """Hold ``out``'s lock while the block runs (released at exit, also when the process dies):
+    a second run into the same directory is refused with a ConfigError naming the process
+    that holds it."""
+    import fcntl
+
+    from zrp_ga.config import ConfigError
+
+    fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            other = os.read(fd, 32).decode(errors="replace").strip() or "unknown"
+            raise ConfigError(f"{out}: another run (process {other}) is writing into this directory; "
+                              "wait for it to end or choose another directory") from None  # fmt: skip
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def remove_temporary(out: Path) -> None:
+    """Remove the temporary files (``.NAME.PID.tmp``: written, then renamed) a killed or failed
+    run left in ``out``; called while holding its lock, so no other run is writing them."""
+    for tmp in out.glob(".*.tmp"):
+        tmp.unlink(missing_ok=True)
 
 
 def status(out: Path) -> str | None:
@@ -67,6 +105,35 @@ def write_status(out: Path, state: str, error: str | None = None) -> None:
 
 def read_summary(out: Path) -> dict:
     return json.loads((out / SUMMARY).read_text())
+
+
+def damage(out: Path) -> str | None:
+    """What is wrong with the finished run in ``out`` (None: nothing): a ``summary.json`` that
+    cannot be read whole, a ``convergence.csv`` missing, cut short, or not ending at the
+    summary's evaluation count."""
+    try:
+        written = read_summary(out)
+    except (OSError, ValueError) as exc:
+        return f"{out / SUMMARY} cannot be read ({type(exc).__name__})"
+    if not isinstance(written, dict) or "final_cost" not in written:
+        return f"{out / SUMMARY} is not a run's summary"
+    try:
+        with open(out / CONVERGENCE, newline="") as f:
+            text = f.read()
+        rows = list(csv.DictReader(text.splitlines()))
+    except (OSError, ValueError, csv.Error) as exc:
+        return f"{out / CONVERGENCE} cannot be read ({type(exc).__name__})"
+    if not rows or not text.endswith("\n") or any(None in r.values() or None in r for r in rows):
+        return f"{out / CONVERGENCE} is cut short"
+    if "nevals" in written and str(rows[-1].get("nevals")) != str(written["nevals"]):
+        return f"{out / CONVERGENCE} ends before the run did (nevals {rows[-1].get('nevals')}, not {written['nevals']})"
+    return None
+
+
+def clear(out: Path) -> None:
+    """Remove a run's files from ``out`` (a damaged run, to be run again)."""
+    for name in RUN_FILES:
+        (out / name).unlink(missing_ok=True)
 
 
 # --- a sweep ------------------------------------------------------------------------------------------

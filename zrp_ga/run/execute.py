@@ -21,7 +21,7 @@ from omegaconf import DictConfig, OmegaConf
 from zrp_ga.config import ConfigError
 from zrp_ga.errors import warn
 from zrp_ga.run import directory
-from zrp_ga.run.build import Prepared, build, prepare, task_config
+from zrp_ga.run.build import Prepared, build, check_inputs, inputs, prepare, task_config
 from zrp_ga.run.directory import Sweep
 from zrp_ga.run.shared import CACHE, Cache
 
@@ -47,13 +47,21 @@ def run_prepared(p: Prepared, progress: bool, sweep: Sweep | None = None, cache:
     """Run ``p`` in ``p.out`` with ``status.json`` telling where it is: running, then done,
     failed or interrupted; the result and the summary (:func:`execute`)."""
     p.out.mkdir(parents=True, exist_ok=True)
-    directory.write_status(p.out, "running")
-    try:
-        ran = execute(p, p.out, progress, sweep, cache)
-    except BaseException as exc:  # Ctrl-C or a crash: say so where the report will look
-        directory.write_status(p.out, "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed", repr(exc))
-        raise
-    directory.write_status(p.out, "done")
+    with directory.locked(p.out):  # one run per directory at a time
+        directory.remove_temporary(p.out)  # what a killed run left
+        directory.write_status(p.out, "running")
+        try:
+            ran = execute(p, p.out, progress, sweep, cache)
+        except BaseException as exc:  # Ctrl-C or a crash (a full disk): say so where the report will look
+            directory.remove_temporary(p.out)
+            try:
+                named = isinstance(exc, OSError) and exc.filename  # repr leaves the file out
+                directory.write_status(p.out, "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed",
+                                       f"{type(exc).__name__}: {exc}" if named else repr(exc))  # fmt: skip
+            except OSError:  # the disk is full: the error itself tells
+                pass
+            raise
+        directory.write_status(p.out, "done")
     return ran
 
 
@@ -77,7 +85,8 @@ def execute(p: Prepared, out: Path | None, progress: bool, sweep: Sweep | None =
     if out is not None:
         cbs.append(callbacks.ConvergenceLog(out / directory.CONVERGENCE, None if p.state is None else int(p.state["gen"])))
         if p.algorithm.checkpointable and cfg.checkpoint_every:
-            cbs.append(callbacks.Checkpoint(out / directory.CHECKPOINT, int(cfg.checkpoint_every), resolved, p.choices))
+            cbs.append(callbacks.Checkpoint(out / directory.CHECKPOINT, int(cfg.checkpoint_every), resolved, p.choices,
+                                            inputs(cfg, task)))  # fmt: skip
     if progress:
         cbs.append(callbacks.Progress())
     where = None if sweep is None else sweep.dir
@@ -115,7 +124,11 @@ def sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Ca
 def _sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Cache) -> float:
     from zrp_ga import checkpoint
 
-    if directory.status(out) == "done" and (out / directory.SUMMARY).exists():
+    damaged = directory.damage(out) if directory.status(out) == "done" else None
+    if damaged:  # never kept as finished: the run is deterministic, so running it again gives its files back
+        log.warning("%s: %s; the job runs again", out, damaged)
+        directory.clear(out)
+    elif directory.status(out) == "done" and (out / directory.SUMMARY).exists():
         written = directory.read_summary(out)
         _same_run(cfg, written.get("config"), out)
         log.info("%s: finished before; kept", out)
@@ -133,8 +146,12 @@ def _sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: C
         else:
             state.pop("choices", None)
             _same_run(cfg, state.pop("config"), out)
+            recorded = state.pop("inputs", None)
             log.info("%s: continues from its checkpoint after generation %d", out, int(state["gen"]))
-    return objective(run_prepared(build(cfg, out, state, choices, cache), False, sweep, cache))
+    p = build(cfg, out, state, choices, cache)
+    if state is not None:
+        check_inputs(p, recorded, str(out))
+    return objective(run_prepared(p, False, sweep, cache))
 
 
 def _same_run(cfg: DictConfig, stored: dict | None, out: Path) -> None:
