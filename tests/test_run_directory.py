@@ -124,3 +124,25 @@ def test_a_damaged_job_of_a_sweep_is_named_and_run_again(tmp_path, damage, caplo
     assert (out / "convergence.csv").read_text().count("\n") == conv.count("\n")
     assert json.loads((out / "summary.json").read_text())["final_cost"] == summ["final_cost"]
     assert directory.job_states(sweep)[-1]["status"] == "done"
+
+
+def test_a_finished_job_recorded_before_a_setting_existed_is_the_same_run(tmp_path):
+    """A run recorded by an older zrp_ga holds no key for a setting added since (null by
+    default): continuing its sweep keeps it; a setting that really differs is named."""
+    from omegaconf import OmegaConf
+
+    from zrp_ga import config
+    from zrp_ga.config import ConfigError
+    from zrp_ga.run import execute
+
+    cfg = config.load(["problem=multipose"])
+    stored = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    nulls = [k for k, v in stored["problem"].items() if v is None]
+    assert nulls, "the problem schema has null settings to leave out"
+    older = {**stored, "problem": {k: v for k, v in stored["problem"].items() if k not in nulls}}
+    execute._same_run(cfg, older, tmp_path)  # kept: no error
+    other = {**stored, "problem": {**stored["problem"], "n_poses": stored["problem"]["n_poses"] + 1}}
+    with pytest.raises(ConfigError, match=r"problem\.n_poses differs"):
+        execute._same_run(cfg, other, tmp_path)
+    with pytest.raises(ConfigError, match="differs"):
+        execute._same_run(cfg, {**older, "problem": {**older["problem"], nulls[0]: [1]}}, tmp_path)

@@ -158,9 +158,9 @@ def _same_run(cfg: DictConfig, stored: dict | None, out: Path) -> None:
     """Refuse to continue the run in ``out`` when its config (``stored``, from its summary or
     checkpoint) is not ``cfg`` (the progress line and resume setting aside)."""
 
-    def plain(o: Any) -> Any:  # as JSON holds it: non-finite floats as null
-        if isinstance(o, dict):
-            return {str(k): plain(v) for k, v in o.items()}
+    def plain(o: Any) -> Any:  # as JSON holds it: non-finite floats as null; a null setting as an absent one
+        if isinstance(o, dict):  # (a run recorded before a setting existed holds no key for it)
+            return {str(k): p for k, v in o.items() if (p := plain(v)) is not None}
         if isinstance(o, (list, tuple)):
             return [plain(v) for v in o]
         return None if isinstance(o, float) and not math.isfinite(o) else o
@@ -182,7 +182,7 @@ def _difference(a: Any, b: Any) -> str:
                     for k in leaves(a.get(name), b.get(name), f"{key}.{name}" if key else name)]  # fmt: skip
         return [key or "the config"]
 
-    return min(leaves(a, b, ""), key=lambda k: k.count("."))
+    return min(leaves(a, b, ""), key=lambda k: k.count("."), default="the config")
 
 
 def warm_up(cfg: DictConfig, cache: Cache = CACHE) -> None:
