@@ -109,3 +109,24 @@ def test_the_first_generations_records_by_hand(tmp_path):
     report.ioh_export.export(runs, ["GA"], {"GA": {}}, tmp_path / "out")
     dat = tmp_path / "out" / "GA" / "data_f1_zrp-fake-C" / "IOHprofiler_f1_DIM2.dat"
     assert dat.read_text() == "evaluations raw_y\n1 5.0\n2 2.5\n4 2.0\n8 1.0\n12 1.0\n"
+
+
+def test_iohinspector_reads_the_export_back(tmp_path):
+    """IOHprofiler's own reader (iohinspector) finds one function per problem instance and
+    configuration, each seed as an instance id, and every run's (evaluations, best) records."""
+    iohinspector = pytest.importorskip("iohinspector")
+    for name, (instance, algorithm, rows, initial, seed) in RUNS.items():
+        fake_run(tmp_path / "runs" / name, instance, algorithm, rows, initial=initial, seed=seed)
+    runs = report.find_runs([tmp_path / "runs"])[0]
+    labels, shown = report.configurations(runs)
+    report.ioh_export.export(runs, labels, shown, tmp_path / "ours")
+    manager = iohinspector.DataManager()
+    for folder in sorted(p for p in (tmp_path / "ours").iterdir() if p.is_dir()):
+        manager.add_folder(str(folder))
+    meta = manager.overview.to_pandas()
+    found = sorted(zip(meta["algorithm_name"], meta["function_name"], meta["instance"]))
+    assert found == [("GA", "zrp-fake-A", 0), ("GA", "zrp-fake-A", 7), ("GA", "zrp-fake-B", 0), ("Levenberg-Marquardt", "zrp-fake-A", 3)]
+    data = manager.load(monotonic=True, include_meta_data=True).to_pandas()
+    a7 = data[(data["function_name"] == "zrp-fake-A") & (data["instance"] == 7) & (data["algorithm_name"] == "GA")]
+    # run a2: initial population costs 3, 4, 3.5, 3.25 (best 3 at evaluation 1), then 1.5 at 12
+    assert list(zip(a7["evaluations"], a7["raw_y"])) == [(1, 3.0), (12, 1.5)]
