@@ -36,6 +36,7 @@ REG = "tests/test_registration_values.py"
 WARN = "tests/test_warning_paths.py"
 MODEL = ["tests/test_so3.py", "tests/test_kinematics.py"]
 UNITS = ["tests/test_measurement_files.py", "tests/test_measurement_units.py"]
+REPORT_STATS = ["tests/test_report_stats.py", "tests/test_report.py"]
 
 PLANTS: list[dict] = [
     # --- operators: the distributions ---------------------------------------------------------
@@ -148,6 +149,17 @@ PLANTS: list[dict] = [
     dict(name="checkpoint-tmp-left", file="zrp_ga/checkpoint.py",
          old="        tmp.unlink(missing_ok=True)\n", new="",
          tests=["tests/test_run_directory.py"], what="a failed checkpoint write leaves its temporary file"),
+    # --- the report's statistics ------------------------------------------------------------------
+    dict(name="holm-no-step-down-maximum", file="zrp_ga/report/stats.py",
+         old="adjusted = np.maximum.accumulate((m - np.arange(m)) * p[order])", new="adjusted = (m - np.arange(m)) * p[order]",
+         tests=REPORT_STATS, what="Holm: the step-down maximum left out (adjusted p-values no longer monotone)"),
+    dict(name="nemenyi-cd-no-sqrt2", file="zrp_ga/report/stats.py",
+         old="cd = stats.studentized_range.ppf(1 - alpha, k, np.inf) / math.sqrt(2) * se",
+         new="cd = stats.studentized_range.ppf(1 - alpha, k, np.inf) * se",
+         tests=REPORT_STATS, what="Nemenyi: the critical difference without the division by sqrt 2"),
+    dict(name="nemenyi-p-no-sqrt2", file="zrp_ga/report/stats.py",
+         old="q = math.sqrt(2) * abs(mean[a] - mean[b]) / se", new="q = abs(mean[a] - mean[b]) / se",
+         tests=REPORT_STATS, what="Nemenyi: pairwise p-values without the factor sqrt 2"),
 ]
 
 

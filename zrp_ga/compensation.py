@@ -46,6 +46,7 @@ from scipy.spatial.transform import Rotation
 from zrp_ga import kinematics, so3
 from zrp_ga.measurements import ANGLE, LENGTH, ROTVEC, check_convention, reach_m, turn_rad
 from zrp_ga.robot import ZRPRobot
+from zrp_ga.run import directory
 
 Array = NDArray[np.float64]
 TOLERANCE_M = 1e-6  # a target counts as reached within this position residual, m
@@ -93,7 +94,7 @@ def load_arms(calibration: Any, nominal: ZRPRobot | str | Path | None = None) ->
         nom, source = task.robot, "the calibration"
     else:
         path = Path(calibration)
-        run = path if path.is_dir() else path.parent if (path.parent / "summary.json").is_file() else None
+        run = path if path.is_dir() else path.parent if (path.parent / directory.SUMMARY).is_file() else None
         if path.is_dir():
             _check_run_dir(path)
             path = path / RUN_MODEL
@@ -123,7 +124,7 @@ def _check_run_dir(path: Path) -> None:
 
 def _run_info(run: Path) -> tuple[ZRPRobot | None, Array | None, Array | None, list[str]]:
     """The nominal arm, the base transform, the first tool and notes from a run's ``summary.json``."""
-    path = run / "summary.json"
+    path = run / directory.SUMMARY
     if not path.is_file():
         return None, None, None, []
     try:

@@ -71,7 +71,7 @@ def _compute(task: Task) -> dict[str, Any]:
             "condition_number": float(report.condition_number), "unidentifiable": list(report.null_directions)}  # fmt: skip
 
 
-ROUND_OFF = 1e-9  # a floor below ROUND_OFF x the nominal cost is round-off (as zrp-ga-report takes it)
+ROUND_OFF = directory.ROUND_OFF
 
 
 def floor(task: Task, key: str | None = None, cache: Cache | None = None, sweep: Path | None = None) -> dict[str, float]:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from zrp_ga.report.common import BUDGETS, LEVELS, ROUND_OFF, ReportError, markdown
+from zrp_ga.run import directory
 
 if TYPE_CHECKING:
 
@@ -156,7 +157,7 @@ def _paper_tables(run: Run, stage: Path) -> list[str]:
     import pandas as pd
 
     missing = []
-    for name, source in (("table2_initial_population", "initial_population.csv"), ("table3_best_params", "best_params.csv")):
+    for name, source in (("table2_initial_population", directory.INITIAL_POPULATION), ("table3_best_params", directory.BEST_PARAMS)):
         try:
             (stage / f"{name}.md").write_text(markdown(pd.read_csv(run.path / source)))
         except (OSError, ValueError, pd.errors.ParserError):

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from zrp_ga.run import directory
+
 if TYPE_CHECKING:
     import pandas as pd
 
 LEVELS = (1.5, 1.1, 1.05, 1.01)  # target levels c (targets c x f_ref)
 BUDGETS = (100, 1_000, 10_000)  # fixed budgets, evaluations
-ROUND_OFF = 1e-9  # a floor below ROUND_OFF x nominal cost is round-off
+ROUND_OFF = directory.ROUND_OFF  # a floor below ROUND_OFF x nominal cost is round-off
 ALPHA = 0.05  # the significance level of every test the report reads in words
 
 

@@ -3,7 +3,7 @@ is left out with the reason, never read half.
 
 A run is a directory holding ``convergence.csv``; it counts when it also holds a readable
 ``summary.json`` and its ``status.json`` (when present) does not say it failed or was
-interrupted. A sweep directory holds ``manifest.jsonl`` (:mod:`zrp_ga.hydra_callbacks`): its
+interrupted. A sweep directory holds ``manifest.jsonl`` (:mod:`zrp_ga.run.directory`): its
 jobs are read in the manifest's order with the manifest's state, then any run directory below it
 that the manifest does not name.
 """
@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from zrp_ga.hydra_callbacks import MANIFEST
 from zrp_ga.report.common import ReportError
+from zrp_ga.run.directory import CONVERGENCE, INITIAL_POPULATION, MANIFEST, STATUS, SUMMARY
 
 Array = np.ndarray
 IGNORED_KEYS = ("hydra", "experiment", "progress", "checkpoint_every")
@@ -99,7 +99,7 @@ def _hydra_overrides(path: Path) -> dict[str, str]:
 def read_summary(path: Path) -> dict[str, Any]:
     """``summary.json`` checked for the fields the report uses; LeftOut says what is wrong."""
     try:
-        summary = json.loads((path / "summary.json").read_text())
+        summary = json.loads((path / SUMMARY).read_text())
     except json.JSONDecodeError as exc:
         raise LeftOut(f"summary.json is not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -128,7 +128,7 @@ def read_convergence(path: Path) -> pd.DataFrame:
     target). A cost of -inf (it would reach every target), a negative one or NaN is no cost: the
     run is left out, named, not read around. LeftOut names the first line that is not."""
     try:
-        text = (path / "convergence.csv").read_text()
+        text = (path / CONVERGENCE).read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise LeftOut(f"convergence.csv cannot be read ({exc})") from None
     rows = list(csv.reader(io.StringIO(text)))
@@ -168,7 +168,7 @@ def read_convergence(path: Path) -> pd.DataFrame:
 def _initial_costs(path: Path) -> Array | None:
     """The initial population's costs in evaluation order, or None when unreadable."""
     try:
-        costs = pd.read_csv(path / "initial_population.csv", usecols=["cost"])["cost"]
+        costs = pd.read_csv(path / INITIAL_POPULATION, usecols=["cost"])["cost"]
         return pd.to_numeric(costs, errors="raise").to_numpy(dtype=float)
     except (OSError, ValueError, KeyError, pd.errors.ParserError):
         return None
@@ -204,12 +204,12 @@ def trace(conv: pd.DataFrame, initial_costs: Array | None = None) -> tuple[Array
 def load_run(path: Path, overrides: dict[str, str]) -> Run:
     """The finished run in ``path``; LeftOut says why it does not count."""
     status = _status(path)
-    if not (path / "summary.json").exists():
+    if not (path / SUMMARY).exists():
         raise LeftOut(_unfinished(status, path))
     if status and status.get("status") in ("failed", "interrupted"):
         raise LeftOut(_unfinished(status, path))
     summary = read_summary(path)
-    if not (path / "convergence.csv").exists():
+    if not (path / CONVERGENCE).exists():
         raise LeftOut("no convergence.csv")
     conv = read_convergence(path)
     last = int(conv["nevals"].iloc[-1])
@@ -221,7 +221,7 @@ def load_run(path: Path, overrides: dict[str, str]) -> Run:
 
 def _status(path: Path) -> dict | None:
     try:
-        status = json.loads((path / "status.json").read_text())
+        status = json.loads((path / STATUS).read_text())
     except (OSError, ValueError):
         return None
     return status if isinstance(status, dict) else None
@@ -307,7 +307,7 @@ def find_runs(paths: list[str | Path]) -> tuple[list[Run], list[tuple[str, str]]
                 job_dir = path / str(job["dir"])
                 if job_dir not in seen:
                     take(job_dir, _job, path, job)
-        elif (path / "convergence.csv").exists() or (path / "status.json").exists():
+        elif (path / CONVERGENCE).exists() or (path / STATUS).exists():
             take(path, load_run, path, _hydra_overrides(path))
             return
         try:

@@ -46,6 +46,7 @@ RUN_FILES = (CONVERGENCE, SUMMARY, STATUS, CHECKPOINT, BEST_PARAMS, INITIAL_POPU
 MANIFEST = "manifest.jsonl"
 TABLE = "manifest.csv"
 COLUMNS = ["job", "overrides", "dir", "status", "error", "time"]
+ROUND_OFF = 1e-9  # a floor below ROUND_OFF x the nominal cost is round-off (the runs' floors and the report)
 SHARED = ".zrp_ga"  # what the jobs of a sweep share, in the sweep directory
 
 
