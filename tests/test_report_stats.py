@@ -142,3 +142,20 @@ def test_factorial_main_effects_paired_by_the_other_settings():
     assert set(medians[medians["setting"] == "x"]["instance"]) == {"I1", "I2", "all"}
     y = tests[(tests["setting"] == "y") & (tests["a"] != "all")].set_index("instance")
     assert (y["p"] > 0.05).all()  # y's blocks are the (seed, x) pairs: its values differ at random
+
+
+def test_nemenyi_pairwise_p_is_alpha_at_the_critical_difference():
+    # Demšar's rule: two configurations differ at level alpha when their mean ranks differ by more
+    # than CD (1.25 in his four-on-14 example, with q_0.05 = 2.569 from his Table 5). A pair whose
+    # ranks differ by exactly 2.569 sqrt(20 / 84) must then have p = 0.05; by 2 x that, p < 0.05.
+    scores = pd.DataFrame(np.tile([1.0, 2.0, 3.0, 4.0], (14, 1)), columns=list("abcd"))
+    result = stats.friedman(scores)  # mean ranks 1, 2, 3, 4
+    se = math.sqrt(20 / 84)
+    pairs = result["pairs"].set_index(["a", "b"])["p_nemenyi"]
+    # mean ranks 1 apart (a-b): q = sqrt 2 x 1 / se; the p at the CD itself, from the same
+    # distribution: P(Q_4 > 2.569 sqrt 2) = 0.05 (Demšar's q_alpha is the studentized range over sqrt 2)
+    assert sps.studentized_range.sf(2.569 * math.sqrt(2), 4, np.inf) == pytest.approx(0.05, abs=2e-4)
+    expected_ab = sps.studentized_range.sf(math.sqrt(2) * 1.0 / se, 4, np.inf)
+    assert pairs[("a", "b")] == pytest.approx(expected_ab, rel=1e-9)
+    assert pairs[("a", "b")] > 0.05 > pairs[("a", "c")]  # 1 rank < CD = 1.25 < 2 ranks
+    assert pairs[("a", "d")] < pairs[("a", "c")] < pairs[("a", "b")]
