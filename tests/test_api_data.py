@@ -218,3 +218,14 @@ def test_registration_warning_names_a_row_of_in_memory_data():
     with pytest.warns(zrp_ga.ZrpGaWarning, match=r"worst: row \d+, ") as record:
         zrp_ga.calibrate(ARM, pd.DataFrame(_columns(q, P)), algorithm="lm")
     assert not any("line" in str(w.message) for w in record if "registered nominal" in str(w.message))
+
+
+def test_rotation_matrices_one_per_measurement():
+    """Rotation matrices in memory must come one per row of q: fewer or more are refused."""
+    import zrp_ga
+
+    q = np.zeros((12, 6))
+    p = np.zeros((12, 3))
+    for R in (np.tile(np.eye(3), (9, 1, 1)), np.tile(np.eye(3), (24, 1, 1))):
+        with pytest.raises(ValueError, match=r"rotation matrices for 12 measurements"):
+            zrp_ga.calibrate("puma560", (q, p, R), algorithm="lm")

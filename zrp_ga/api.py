@@ -215,7 +215,8 @@ def _table(data, what: str):
         names = data.tool_names or ("tool",)
         return _frame(what, data.q, data.p, None, data.std, None if data.tool is None else np.asarray(names)[data.tool]), data.R
     if isinstance(data, (tuple, list)) and len(data) in (2, 3):
-        return _frame(what, *data), _rotations(what, data[2] if len(data) == 3 else None)
+        frame = _frame(what, *data)
+        return frame, _rotations(what, data[2] if len(data) == 3 else None, len(frame))
     if isinstance(data, dict) and "q" in data:
         known = {"q", "positions", "orientations", "std", "tool"}
         for k in data:
@@ -226,7 +227,8 @@ def _table(data, what: str):
         if "positions" not in data:
             raise ValueError(f"{what}: missing key 'positions' (an (M, 3) array beside 'q')")
         o = data.get("orientations")
-        return _frame(what, data["q"], data["positions"], o, data.get("std"), data.get("tool")), _rotations(what, o)
+        frame = _frame(what, data["q"], data["positions"], o, data.get("std"), data.get("tool"))
+        return frame, _rotations(what, o, len(frame))
     if isinstance(data, dict):
         try:
             return pd.DataFrame(data), None
@@ -270,12 +272,15 @@ def _array(what: str, name: str, a, ndim: int) -> np.ndarray:
     return a
 
 
-def _rotations(what: str, o) -> np.ndarray | None:
-    """Orientations given as rotation matrices (M, 3, 3); None for angles (M, 3) or none."""
+def _rotations(what: str, o, M: int) -> np.ndarray | None:
+    """Orientations given as rotation matrices (M, 3, 3), one per measurement; None for angles
+    (M, 3) or none."""
     if o is None or np.ndim(o) == 2:
         return None
     R = _array(what, "orientations", o, 3)
     if R.shape[1:] != (3, 3):
         raise ValueError(f"{what}: orientations must have shape (M, 3) (angles) or (M, 3, 3) (rotation matrices), "
                          f"got {R.shape}")  # fmt: skip
+    if R.shape[0] != M:
+        raise ValueError(f"{what}: {R.shape[0]} rotation matrices for {M} measurements (one per row of q)")
     return R

@@ -107,6 +107,8 @@ class ComposingLoader(ConfigLoader):
         return self.loader.compute_defaults_list(*args, **kwargs)
 
     def __getattr__(self, name: str) -> Any:  # what later Hydra releases add to the interface
+        if "loader" not in self.__dict__:  # not set up yet (copy, unpickling): as any missing attribute
+            raise AttributeError(name)
         return getattr(self.__dict__["loader"], name)
 
     def _hydra(self, master: DictConfig, lines: list[str], options: dict[str, str]) -> tuple[DictConfig, _Composed]:

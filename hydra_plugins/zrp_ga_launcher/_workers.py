@@ -215,7 +215,8 @@ class Pool:
                 time.sleep(0.02)
             for w in self.workers:
                 if w.process.is_alive():
-                    os.kill(w.process.pid, sig)
+                    with contextlib.suppress(ProcessLookupError):  # it ended in between
+                        os.kill(w.process.pid, sig)
         for w in self.workers:
             w.process.join(PATIENCE_S[0])
 

@@ -60,9 +60,9 @@ def prepare(cfg: DictConfig, out: Path | None, overrides: Sequence[str] = (), ch
         out, state, cfg = _resume(cfg, overrides)
         choices = state.pop("choices", None) or {}
         recorded = state.pop("inputs", None)
+        _not_in_use(out)  # before any work: building the problem and hashing its files
         p = build(cfg, out, state, choices, cache, task)
         check_inputs(p, recorded)
-        _not_in_use(out)
         return p
     elif out is not None:
         check_writable(out)
