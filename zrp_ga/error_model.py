@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from zrp_ga import so3
 from zrp_ga._numba import jit
 from zrp_ga.kinematics import check_q
-from zrp_ga.layout import Layout, parameter_names  # noqa: F401 (parameter_names: the Jacobian's columns, named here as before)
+from zrp_ga.layout import Layout, parameter_names, slides  # noqa: F401 (parameter_names: the Jacobian's columns, named here as before)
 from zrp_ga.robot import ZRPRobot
 
 Array = NDArray[np.float64]
@@ -359,32 +359,15 @@ def canonical(layout: Layout, nominal: ZRPRobot, x: ArrayLike) -> Array:
     returned full and fixed along the same directions."""
     x = np.asarray(x, dtype=float)
     full = layout.expand(x)
-    n, whole = nominal.n, layout.unmasked
+    whole = layout.unmasked
     u = layout.unpack(nominal, full).U[:, :, 0]
-    blocks = whole.blocks
-    start = {i: blocks["b0"].start + 3 * (i - 2) for i in range(2, n + 2)}
-    if whole.base:
-        start[1] = blocks["base"].start
-    vectors = []
-    for i in range(1, n + 1):
-        if i not in start:
-            continue
-        for d in np.eye(3) if nominal.joint_types[i - 1] == "P" else u[i - 1][None]:
-            v = np.zeros(whole.size)
-            v[start[i] : start[i] + 3] += d
-            v[start[i + 1] : start[i + 1] + 3] -= d
-            if i == n:  # every tool's end point hangs off axis n's point
-                for t in range(2, whole.n_tools + 1):
-                    v[blocks[f"tool{t}"]] -= d
-            vectors.append(v)
-    if vectors:
-        S = np.array(vectors).T
-        if layout.is_masked:  # the combinations of slides within the genome's range (fixed genes alone)
-            from scipy.linalg import null_space
+    S = slides(whole, nominal, u)
+    if S.shape[1] and layout.is_masked:  # the combinations of slides within the genome's range (fixed genes alone)
+        from scipy.linalg import null_space
 
-            N = layout.matrix
-            S = S @ null_space(S - N @ (N.T @ S))
-    if vectors and S.shape[1]:
+        N = layout.matrix
+        S = S @ null_space(S - N @ (N.T @ S))
+    if S.shape[1]:
         Q = np.linalg.qr(S)[0]
         full -= Q @ (Q.T @ full)
     return full if x.shape[-1] == whole.size else layout.restrict(full)

@@ -481,10 +481,16 @@ def dh_mask(layout: Layout, nominal: ZRPRobot, convention: str, names: Iterable[
 
 
 def _slides(layout: Layout, nominal: ZRPRobot) -> Array:
-    """The model's null directions at the nominal arm (full_size, S), as
-    :func:`zrp_ga.error_model.canonical` takes them: axis i's point slid along axis i (body
-    vector i + d, body vector i+1 - d; a prismatic joint's in any direction), for the points the
-    genome can move (axis 1's only with a base)."""
+    """The model's null directions at the nominal arm: :func:`slides` about the nominal axes."""
+    return slides(layout, nominal, nominal.u0)
+
+
+def slides(layout: Layout, nominal: ZRPRobot, axes: Array) -> Array:
+    """The model's null directions (full_size, S) of an unmasked ``layout``, as
+    :func:`zrp_ga.error_model.canonical` takes them: axis i's point slid along axis i (``axes``
+    (n, 3); body vector i + d, body vector i+1 - d, and every other tool's end point with axis n's;
+    a prismatic joint's point in any direction), for the points the genome can move (axis 1's
+    only with a base)."""
     n, blocks = nominal.n, layout.blocks
     start = {i: blocks["b0"].start + 3 * (i - 2) for i in range(2, n + 2)}
     if layout.base:
@@ -493,7 +499,7 @@ def _slides(layout: Layout, nominal: ZRPRobot) -> Array:
     for i in range(1, n + 1):
         if i not in start:
             continue
-        for d in np.eye(3) if nominal.joint_types[i - 1] == "P" else nominal.u0[i - 1][None]:
+        for d in np.eye(3) if nominal.joint_types[i - 1] == "P" else axes[i - 1][None]:
             v = np.zeros(layout.full_size)
             v[start[i] : start[i] + 3] += d
             v[start[i + 1] : start[i + 1] + 3] -= d
