@@ -59,3 +59,17 @@ def write_csv(path: str | Path, rows: Iterable[dict], columns: list[str] | None 
         w.writeheader()
         for row in rows:
             w.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
+
+
+def package_versions(packages: Iterable[str], missing: str = "not installed") -> dict[str, str]:
+    """Python's version and those of the installed ``packages`` (``missing`` for the absent)."""
+    import platform
+    from importlib import metadata
+
+    out = {"python": platform.python_version()}
+    for pkg in packages:
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            out[pkg] = missing
+    return out

@@ -12,24 +12,16 @@ Plain ``csv`` and ``json``: a run does not import pandas.
 from __future__ import annotations
 
 import functools
-import platform
-from importlib import metadata
 
 import numpy as np
 
-from zrp_ga.fileio import write_csv, write_json, yaml_text  # noqa: F401 (the writers' names here, as before)
+from zrp_ga.fileio import package_versions, write_csv, write_json, yaml_text  # noqa: F401 (the writers' names here, as before)
 from zrp_ga.layout import Layout
 
 
 @functools.cache  # looked up in the installed packages' metadata: 10 ms a run, the same every time
 def _versions() -> tuple[tuple[str, str], ...]:
-    out = {"python": platform.python_version()}
-    for pkg in ("zrp_ga", "numpy", "scipy", "numba", "deap", "hydra-core", "cma"):
-        try:
-            out[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            out[pkg] = "not installed"
-    return tuple(out.items())
+    return tuple(package_versions(("zrp_ga", "numpy", "scipy", "numba", "deap", "hydra-core", "cma")).items())
 
 
 def versions() -> dict[str, str]:

@@ -8,13 +8,12 @@ from __future__ import annotations
 import datetime
 import html
 import math
-import platform
 import re
-from importlib import metadata
 
 import numpy as np
 import pandas as pd
 
+from zrp_ga.fileio import package_versions
 from zrp_ga.report import conclusions
 from zrp_ga.report.common import ALPHA
 
@@ -71,13 +70,7 @@ def table(df: pd.DataFrame, caption: str | None = None, max_rows: int | None = N
 
 
 def _versions() -> dict[str, str]:
-    out = {"python": platform.python_version()}
-    for name in ("zrp_ga", "numpy", "scipy", "pandas", "matplotlib"):
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = "?"
-    return out
+    return package_versions(("zrp_ga", "numpy", "scipy", "pandas", "matplotlib"), missing="?")
 
 
 def _run_versions(runs_summaries: list[dict]) -> pd.DataFrame:
