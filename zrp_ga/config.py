@@ -366,6 +366,7 @@ class ZrpGaLauncherConf:
     cached_composition: bool = True  # job configs from a few of Hydra's compositions (equal to Hydra's)
     warm_up: Optional[str] = "zrp_ga.run.execute.warm_up"  # called with the sweep's config before the first job
     table_every_s: float = 1.0  # manifest.csv rewritten at most this often (and at the end)
+    lockstep: bool = True  # GA jobs on one problem instance with one population shape evolved together (zrp_ga.run.execute.sweep_batch)
 
 
 # Stored at the root of the config tree, not in a group, so that they are no options of their own

@@ -9,10 +9,11 @@ experiments and the launcher's workers all run through :func:`run` or :func:`swe
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import random
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 from zrp_ga.config import ConfigError
 from zrp_ga.errors import warn
 from zrp_ga.run import directory
-from zrp_ga.run.build import Prepared, build, check_inputs, inputs, prepare, task_config
+from zrp_ga.run.build import Prepared, build, check_inputs, inputs, instance_key, prepare, task_config
 from zrp_ga.run.directory import Sweep
 from zrp_ga.run.shared import CACHE, Cache
 
@@ -119,6 +120,37 @@ def sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Ca
         raise
     directory.record(sweep, "done")
     return value
+
+
+Job = tuple  # (cfg, out, sweep, choices): a sweep job's config, run directory, place in the sweep, groups' options
+
+
+def batch_key(cfg: DictConfig) -> str | None:
+    """Jobs of a sweep with the same key can be evolved together (:func:`sweep_batch`): GA runs
+    on the same problem instance with the same population shapes. None: the job runs alone."""
+    cfg = task_config(cfg)
+    if str(cfg.algorithm.get("_target_", "")) != "zrp_ga.algorithms.ga.GA" or cfg.get("resume"):
+        return None
+    pop = cfg.algorithm.population
+    return f"{instance_key(cfg)}|mu={int(pop.mu)}|lambda={int(pop.lambda_)}"
+
+
+def sweep_batch(jobs: Sequence[Job], cache: Cache = CACHE,
+                around: Callable[[int], contextlib.AbstractContextManager] | None = None) -> list[float | Exception]:  # fmt: skip
+    """Run jobs of a sweep (each ``(cfg, out, sweep, choices)`` as :func:`sweep_job` takes
+    them), those with the same :func:`batch_key` together; per job its objective or the
+    exception it failed with (recorded in the manifest as :func:`sweep_job` records it).
+    ``around(k)``: a context entered around everything done for job ``k`` alone (its log file,
+    Hydra's view of the job), by the launcher. KeyboardInterrupt is raised after every job
+    recorded its state."""
+    out: list[float | Exception] = []
+    for k, (cfg, where, sweep, choices) in enumerate(jobs):
+        with around(k) if around else contextlib.nullcontext():
+            try:
+                out.append(sweep_job(cfg, where, sweep, choices, cache))
+            except Exception as exc:
+                out.append(exc)
+    return out
 
 
 def _sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Cache) -> float:
