@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import csv
 import functools
+import io
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +38,11 @@ class Timing(Callback):
         for alias, key in (("evaluate", "eval_s"), ("refine", "refine_s")):
             if hasattr(algorithm.toolbox, alias):
                 algorithm.toolbox.decorate(alias, self._timed(key))
-        self.last = time.perf_counter()
+        self.last = self._now(algorithm)
+
+    @staticmethod
+    def _now(algorithm: Algorithm) -> float:
+        return time.perf_counter() if algorithm.clock is None else algorithm.clock
 
     def _timed(self, key: str) -> Callable:
         def decorator(fn: Callable) -> Callable:
@@ -54,10 +59,12 @@ class Timing(Callback):
         return decorator
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
-        now = time.perf_counter()
+        now = self._now(algorithm)  # evolved with other runs: this run's share of their time
         total = now - self.last
-        row.update(self.spent, bookkeeping_s=total - sum(self.spent.values()), wall_s=algorithm.elapsed())
+        spent = {k: v + algorithm.shared_s.get(k, 0.0) for k, v in self.spent.items()}
+        row.update(spent, bookkeeping_s=total - sum(spent.values()), wall_s=algorithm.elapsed())
         self.spent = dict.fromkeys(self.spent, 0.0)
+        algorithm.shared_s = dict.fromkeys(algorithm.shared_s, 0.0)
         self.last = now
 
 
@@ -68,6 +75,25 @@ class Validation(Callback):
     def __init__(self, judge: Judge):
         self.judge = judge
         self._last: tuple[bytes, dict] | None = None
+
+    @classmethod
+    def together(cls, pairs: Sequence[tuple[Validation, Algorithm]]) -> None:
+        """Judge the new reported genomes of runs evolved together in one call per judge (the
+        validation poses' positions of all of them at once); each callback then finds its own."""
+        todo: dict[int, list] = {}
+        for cb, algorithm in pairs:
+            x = algorithm.current()[0]
+            if x is not None:
+                x = np.asarray(x, dtype=float)
+                if cb._last is None or cb._last[0] != x.tobytes():
+                    todo.setdefault(id(cb.judge), []).append((cb, x))
+        for items in todo.values():
+            if len(items) < 2:
+                continue
+            judge = items[0][0].judge
+            rms, vmax = judge.validation_errors(np.stack([x for _, x in items]))
+            for (cb, x), r, m in zip(items, rms.tolist(), vmax.tolist()):
+                cb._last = (x.tobytes(), {"val_rms_m": r, "val_max_m": m, "param_err": float(judge.param_error(x)[0])})
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
         x = algorithm.current()[0]
@@ -84,10 +110,14 @@ class Validation(Callback):
 class ConvergenceLog(Callback):
     """``convergence.csv``: one row per generation, flushed at once, so that an interrupted run
     keeps every finished generation. Resuming, the rows up to ``keep_until_gen`` are kept (rows
-    a killed run wrote past its last checkpoint are written again by the resumed run)."""
+    a killed run wrote past its last checkpoint are written again by the resumed run).
+    ``flush_every``: rows kept in memory and written (whole, in one write) every that many
+    generations, at the end and at an interrupt, as runs evolved together do; a checkpoint
+    callback of the same cadence placed after this one then never holds a generation that the
+    file does not."""
 
-    def __init__(self, path: str | Path, keep_until_gen: int | None = None):
-        self.path, self.keep_until_gen = Path(path), keep_until_gen
+    def __init__(self, path: str | Path, keep_until_gen: int | None = None, flush_every: int | None = None):
+        self.path, self.keep_until_gen, self.flush_every = Path(path), keep_until_gen, flush_every
 
     def on_start(self, algorithm: Algorithm) -> None:
         kept = []
@@ -103,16 +133,27 @@ class ConvergenceLog(Callback):
             writer.writerows(kept)
         os.replace(tmp, self.path)
         self._file = open(self.path, "a", newline="")
-        self._writer = csv.DictWriter(self._file, fieldnames=COLUMNS, extrasaction="ignore", restval="")
+        self._buffer = io.StringIO() if self.flush_every is not None else None
+        self._writer = csv.DictWriter(self._buffer or self._file, fieldnames=COLUMNS, extrasaction="ignore", restval="")
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
         self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
+        if self._buffer is None or not algorithm.has_next() or (self.flush_every and algorithm.gen % self.flush_every == 0):
+            self._flush()
+
+    def _flush(self) -> None:
+        if self._buffer is not None:
+            self._file.write(self._buffer.getvalue())  # whole rows in one write: a kill leaves no half row
+            self._buffer.seek(0)
+            self._buffer.truncate()
         self._file.flush()
 
     def on_interrupt(self, algorithm: Algorithm) -> None:
+        self._flush()
         self._file.close()
 
     def on_end(self, algorithm: Algorithm, result: Result) -> None:
+        self._flush()
         self._file.close()
 
 
