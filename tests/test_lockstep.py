@@ -42,6 +42,9 @@ MIXED = [
     ["crossover=blend", "mutation=gaussian", "refine=none", "population.generations=30", "+algorithm.target_cost=1.0"],
     ["crossover=sbx", "mutation=gaussian", "inversion=segment", "rotation=segment", "refine=none", "population.generations=9",
      "mutation.op.sigma=0.3"],
+    # about one changed child a generation: its cost computed as for one genome alone
+    ["crossover=none", "mutation=gaussian", "mutation.prob=0.07", "inversion=none", "rotation=none", "refine=none",
+     "population.generations=12"],
 ]  # fmt: skip
 
 
@@ -115,6 +118,8 @@ def test_the_batch_mixes_budgets_and_stops(batch_and_alone):
     gens = {len(_rows(together / str(k) / directory.CONVERGENCE)) for k in range(len(MIXED))}
     assert {"generations", "max_evals", "stagnation", "target_cost"} <= reasons
     assert len(gens) >= 5  # runs left the batch at different generations
+    nevals = [int(r["nevals"]) for r in _rows(together / str(len(MIXED) - 1) / directory.CONVERGENCE)]
+    assert 1 in np.diff(nevals)  # a generation with one changed child
     states = [r["status"] for r in directory.job_states(together)]
     assert states == ["done"] * len(MIXED)
 

@@ -88,10 +88,10 @@ class Validation(Callback):
                 if cb._last is None or cb._last[0] != x.tobytes():
                     todo.setdefault(id(cb.judge), []).append((cb, x))
         for items in todo.values():
-            if len(items) < 2:
-                continue
             judge = items[0][0].judge
-            rms, vmax = judge.validation_errors(np.stack([x for _, x in items]))
+            if len(items) < 2 or judge.layout.known_tools:  # known tools' ends are not computed `each`: alone
+                continue
+            rms, vmax = judge.validation_errors(np.stack([x for _, x in items]), each=True)
             for (cb, x), r, m in zip(items, rms.tolist(), vmax.tolist()):
                 cb._last = (x.tobytes(), {"val_rms_m": r, "val_max_m": m, "param_err": float(judge.param_error(x)[0])})
 

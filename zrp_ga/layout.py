@@ -245,16 +245,23 @@ class Layout:
         out[..., self.free] = X
         return out
 
-    def unpack(self, nominal: ZRPRobot, X: ArrayLike) -> ModelArrays:
+    def unpack(self, nominal: ZRPRobot, X: ArrayLike, each: bool = False) -> ModelArrays:
         """Model arrays of genomes X (P, K) or (K,) (then P = 1), or of full genomes (with the fixed
-        genes); NaN where genes break the model."""
+        genes); NaN where genes break the model. ``each``: every genome's numbers exactly as
+        unpacking it alone gives them (``np.einsum`` adds the axes' squares in another order for
+        one genome than for many; runs evolved together judge their genomes so, to write what
+        each writes alone)."""
         from scipy.spatial.transform import Rotation
 
         X = np.atleast_2d(self.expand(X))
         P, n, blocks = X.shape[0], self.n, self._full_blocks()
         D = np.ascontiguousarray(X.T)  # the kernels need C order: their loops vectorise over P
         U = nominal.u0[:, :, None] + D[blocks["u0"]].reshape(n, 3, P)
-        length2 = squares(U, axis=1)
+        if each and P > 1:  # each genome's squares summed as for P = 1: over a contiguous axis
+            Ut = np.ascontiguousarray(U.transpose(2, 0, 1))
+            length2 = np.ascontiguousarray(np.einsum("pik,pik->pi", Ut, Ut).T)
+        else:
+            length2 = np.einsum("ikp,ikp->ip", U, U)
         with np.errstate(all="ignore"):
             U /= np.sqrt(length2)[:, None, :]
         B = np.repeat(nominal.b0[:, :, None], P, axis=2)
@@ -277,8 +284,8 @@ class Layout:
             ends.append((nominal.b0[-1] + nominal.R_h0 @ offset)[:, None] + D[blocks[f"tool{t}"]])
         if self.known_tools:
             offsets = np.array(((0.0, 0.0, 0.0),) + self.tools)  # (T, 3), tool 1's is zero
-            hand = np.mean([e - _rotated(H, o) for e, o in zip(ends, offsets)], axis=0)
-            ends += [hand + _rotated(H, np.array(o)) for o in self.known_tools]
+            hand = np.mean([e - np.einsum("ijp,j->ip", H, o) for e, o in zip(ends, offsets)], axis=0)
+            ends += [hand + np.einsum("ijp,j->ip", H, np.array(o)) for o in self.known_tools]
         return np.stack(ends)
 
     def pack(self, nominal: ZRPRobot, robot: ZRPRobot, ends: ArrayLike | None = None) -> Array:
@@ -507,20 +514,3 @@ def slides(layout: Layout, nominal: ZRPRobot, axes: Array) -> Array:
                 v[blocks[f"tool{t}"]] -= d
             vectors.append(v)
     return np.array(vectors).T if vectors else np.zeros((layout.full_size, 0))
-
-
-def squares(A: Array, axis: int) -> Array:
-    """The sum of squares of ``A`` along ``axis``, added in order, so that a genome's numbers do
-    not depend on how many genomes are computed with it (``np.einsum`` adds in another order
-    when the summed axis is contiguous, as it is for one genome): runs evolved together must
-    compute exactly what each computes alone (the order is einsum's for many genomes)."""
-    A = np.moveaxis(A, axis, 0)
-    total = A[0] * A[0]
-    for a in A[1:]:
-        total = total + a * a
-    return total
-
-
-def _rotated(H: Array, o: Array) -> Array:
-    """``H @ o`` for every genome (H (3, 3, P), o (3,)): (3, P), added in order (see :func:`squares`)."""
-    return (H[:, 0] * o[0] + H[:, 1] * o[1]) + H[:, 2] * o[2]

@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga import error_model, kinematics, so3
 from zrp_ga.config import Cost, Kernel, Norm
-from zrp_ga.layout import Layout, squares
+from zrp_ga.layout import Layout
 from zrp_ga.measurements import Measurements
 from zrp_ga.robot import ZRPRobot
 
@@ -115,7 +115,7 @@ class CalibrationProblem:
                     t = m.for_tool(k)
                     sums = sums + kinematics.residual_sums_unchecked(t.U, t.B, t.H, terms, p, R, w, kernel=self.kernel.value)
                 unit = 0.5 * (m.length2 - 1.0)
-                total = self.orientation_weight**2 * sums[0] + sums[1] + squares(unit, axis=0)
+                total = self.orientation_weight**2 * sums[0] + sums[1] + np.einsum("ip,ip->p", unit, unit)
             if self.norm is Norm.rms:
                 total = total / self.n_rows
             return np.sqrt(total)

@@ -10,6 +10,7 @@ DEAP's ``eaMuPlusLambda`` (:meth:`GA.step`); survival strategies are the small f
 from __future__ import annotations
 
 import functools
+import itertools
 import random
 import time
 from collections.abc import Callable, Sequence
@@ -74,6 +75,7 @@ class GA(Algorithm):
         self.refine_conf: RefineConf = section(RefineConf, refine, "refine")
         self.strategy, self.repair = Strategy(strategy), Repair(repair)
         self.elite, self.target_cost, self.stagnation = int(elite), target_cost, stagnation
+        self._best: int | None = None  # the index of the current population's best, once known
         mu, lam = self.pop_conf.mu, self.pop_conf.lambda_
         if self.strategy is not Strategy.mu_plus_lambda and lam < mu:
             raise ConfigError(f"algorithm.strategy: {self.strategy.value} needs population.lambda_ >= mu, got {lam} < {mu}")
@@ -130,6 +132,7 @@ class GA(Algorithm):
                               "(experiment=pose_selection does)")
         self.pop = p.sample(self.rng, mu) if isinstance(p, Sampling) else self.rng.uniform(p.lower, p.upper, size=(mu, p.lower.size))
         self.costs = self.toolbox.evaluate(self.pop)
+        self._best = None
         self.initial = (self.pop.copy(), self.costs.copy())
         self.nevals, self.n_nonfinite = self.pop_conf.mu, int(np.sum(~np.isfinite(self.costs)))
         self.offer(self.pop, self.costs)
@@ -152,19 +155,6 @@ class GA(Algorithm):
 
         ops = [self.selection.op, self.refine_conf.op] + [v.op for v in self.variation.values()]
         return any(node is not None and not getattr(get_method(node["_target_"]), "batched", False) for node in ops)
-
-    def _tell(self, offspring: Array, off_costs: Array, new: NDArray, values: Array, refined: NDArray[np.bool_]) -> None:
-        """The rest of a generation once the changed offspring ``new`` have their costs
-        ``values``: count, survive, remember the best, decide whether to stop."""
-        off_costs[new] = values
-        self.nevals += new.size + int(refined.sum())  # a pseudo-inverse step evaluates its residual once
-        self.n_nonfinite = values.size - int(np.isfinite(values).sum())
-        survive = SURVIVAL[self.strategy if len(offspring) >= self.pop_conf.mu else Strategy.mu_plus_lambda]
-        self.pop, self.costs = survive(self.pop, self.costs, offspring, off_costs, self.pop_conf.mu, self.elite)
-        self.gen += 1
-        self.offer(self.pop, self.costs)
-        self._update_stagnation()
-        self.stop_reason = self._stop_reason()
 
     def _offspring_count(self) -> int:
         c = self.pop_conf
@@ -192,7 +182,7 @@ class GA(Algorithm):
 
     def current(self) -> tuple[Array, float]:
         """The best genome of the current population (what a generation's row reports)."""
-        k = int(rank(self.costs)[0])
+        k = int(rank(self.costs)[0]) if self._best is None else self._best
         return self.pop[k], float(self.costs[k])
 
     def fraction_done(self) -> float | None:
@@ -215,6 +205,7 @@ class GA(Algorithm):
 
     def restore(self, state: dict) -> None:
         self.pop, self.costs = np.asarray(state["pop"], dtype=float), np.asarray(state["costs"], dtype=float)
+        self._best = None
         self.initial = (np.asarray(state["initial_x"]), np.asarray(state["initial_costs"]))
         self.best_x, self.best_cost = np.asarray(state["best_x"], dtype=float), float(state["best_cost"])
         for key in ("gen", "nevals", "n_nonfinite", "since_improved"):
@@ -253,66 +244,73 @@ def _groups(runs: Sequence[GA], alias: str, which: Sequence[int]) -> list[list[i
     return list(groups.values())
 
 
-def _apply(runs: Sequence[GA], alias: str, blocks: dict[int, tuple[Array, ...]]) -> None:
-    """Apply the ``alias`` operator to each run's rows ``blocks[i]`` (one array, or two for
-    crossover), in place: one call per group of runs (:func:`_groups`), each run's random
-    numbers from its own generator (:class:`zrp_ga.operators.base.Streams`)."""
-    for group in _groups(runs, alias, list(blocks)):
+def _apply(runs: Sequence[GA], alias: str, rows: dict[int, tuple[NDArray[np.intp], ...]], off: Array) -> None:
+    """Apply each run's ``alias`` operator to its offspring ``off[rows[i][j]]`` (one index
+    array, or two for crossover's pairs), in place: one call per group of runs
+    (:func:`_groups`) on the rows of all its runs, each run's random numbers from its own
+    generator (:class:`zrp_ga.operators.base.Streams`)."""
+    for group in _groups(runs, alias, list(rows)):
+        index = [np.concatenate([rows[i][j] for i in group]) for j in range(len(rows[group[0]]))]
+        genes = [off[ix] for ix in index]  # copies; the operators change them in place
         if len(group) == 1:
-            getattr(runs[group[0]].toolbox, alias)(*blocks[group[0]])
-            continue
-        fn, params, _ = runs[group[0]].ops[alias]
-        counts = [len(blocks[i][0]) for i in group]
-        joined = [np.concatenate([blocks[i][j] for i in group]) for j in range(len(blocks[group[0]]))]
-        fn(*joined, rng=Streams([runs[i].rng for i in group], counts), **params)
-        start = 0
-        for i, n in zip(group, counts):
-            for j, part in enumerate(joined):
-                blocks[i][j][:] = part[start : start + n]
-            start += n
+            getattr(runs[group[0]].toolbox, alias)(*genes)
+        else:
+            fn, params, _ = runs[group[0]].ops[alias]
+            fn(*genes, rng=Streams([runs[i].rng for i in group], [len(rows[i][0]) for i in group]), **params)
+        for ix, g in zip(index, genes):
+            off[ix] = g
 
 
 def step_together(runs: Sequence[GA]) -> None:
     """One generation of each GA of ``runs`` (set up on the same problem, with the same
-    population size), exactly as :meth:`GA.step` makes it for each alone: every run draws its
-    random numbers from its own generator in the order it draws them alone, while each operator
-    is applied once to the rows of all the runs that use it (:func:`_apply`) and every run's
-    changed offspring are evaluated in one call of the problem's cost.
+    population size), exactly as each makes it alone: every run draws its random numbers from
+    its own generator, in the order it draws them alone, while the offspring of all runs are
+    one array, each operator is applied once to the rows of all the runs that use it
+    (:func:`_apply`), every changed offspring is evaluated in one call of the problem's cost,
+    and survival and statistics are computed for all runs at once.
 
     A generation, the paper's steps 5-9 in the shape of DEAP's ``eaMuPlusLambda``: ``lambda``
     parents selected; the first pairs crossed with ``crossover.prob`` (parents come in random
     order), then each child mutated, inverted and rotated with their probabilities, genes
     repaired into their ranges; a share of the children takes the pseudo-inverse step; the
     changed children evaluated (unchanged clones keep their parent's cost); survival."""
-    R = len(runs)
     lams = [ga._offspring_count() for ga in runs]
+    starts = np.concatenate([[0], np.cumsum(lams)]).astype(np.intp)
+    spans = [slice(int(a), int(b)) for a, b in itertools.pairwise(starts)]
     parents = _select(runs, lams)
-    offspring = [ga.pop[p] for ga, p in zip(runs, parents)]  # fancy indexing copies: the clones
-    off_costs = [ga.costs[p] for ga, p in zip(runs, parents)]
-    changed = [np.zeros(lam, dtype=bool) for lam in lams]
-    # crossover of the first pairs: how many pairs, drawn by each run, then the pairs changed in place
-    pairs = {}
+    pops = [ga.pop for ga in runs]
+    bases = np.concatenate([[0], np.cumsum([len(p) for p in pops])[:-1]])
+    flat = np.concatenate([p + b for p, b in zip(parents, bases)]) if len(runs) > 1 else parents[0]
+    off = (np.concatenate(pops) if len(runs) > 1 else pops[0])[flat]  # fancy indexing copies: the clones
+    off_costs = (np.concatenate([ga.costs for ga in runs]) if len(runs) > 1 else runs[0].costs)[flat]
+    changed = np.zeros(len(off), dtype=bool)
+    pairs = {}  # crossover of each run's first pairs: how many, drawn by the run
     for i, ga in enumerate(runs):
         if hasattr(ga.toolbox, "mate"):
             n_cx = 2 * ga.rng.binomial(lams[i] // 2, ga.variation["crossover"].prob)
             if n_cx:
-                pairs[i] = (offspring[i][0:n_cx:2], offspring[i][1:n_cx:2])  # strided views
-                changed[i][:n_cx] = True
-    _apply(runs, "mate", pairs)
+                first = starts[i] + np.arange(0, n_cx, 2)
+                pairs[i] = (first, first + 1)
+                changed[starts[i] : starts[i] + n_cx] = True
+    _apply(runs, "mate", pairs, off)
     chosen = [ga.rng.random((3, lam)) < ga.probs[:, None] for ga, lam in zip(runs, lams)]  # who mutates, inverts, rotates
     for j, (alias, _) in enumerate(UNARY):
-        picked = {i: (offspring[i][chosen[i][j]],) for i in range(R) if hasattr(runs[i].toolbox, alias) and chosen[i][j].any()}
-        _apply(runs, alias, picked)
-        for i, (block,) in picked.items():
-            offspring[i][chosen[i][j]] = block
-            changed[i] |= chosen[i][j]
-    for i, ga in enumerate(runs):
-        ga.toolbox.repair(offspring[i])
-    refined = _refine(runs, offspring)
-    new = [np.flatnonzero(c | r) for c, r in zip(changed, refined)]
-    values = _evaluate(runs, [off[n] for off, n in zip(offspring, new)])
-    for i, ga in enumerate(runs):
-        ga._tell(offspring[i], off_costs[i], new[i], values[i], refined[i])
+        picked = {i: (starts[i] + np.flatnonzero(c[j]),) for i, c in enumerate(chosen) if hasattr(runs[i].toolbox, alias) and c[j].any()}
+        _apply(runs, alias, picked, off)
+        for i in picked:
+            changed[spans[i]] |= chosen[i][j]
+    _repair(runs, off, spans, range(len(runs)))
+    refined = _refine(runs, off, spans)
+    new = np.flatnonzero(changed | refined)  # unchanged clones keep their parent's cost
+    values = _evaluate(runs, off[new], np.searchsorted(new, starts))
+    off_costs[new] = values
+    _survive(runs, off, off_costs, spans, new, values, refined, starts)
+
+
+def _repair(runs: Sequence[GA], off: Array, spans: list[slice], which: Sequence[int]) -> None:
+    """Each run's repair of its offspring (the gene ranges, or its problem's own), in place."""
+    for i in which:
+        runs[i].toolbox.repair(off[spans[i]])  # a view: repaired in place
 
 
 def _select(runs: Sequence[GA], lams: list[int]) -> list[NDArray[np.intp]]:
@@ -330,40 +328,96 @@ def _select(runs: Sequence[GA], lams: list[int]) -> list[NDArray[np.intp]]:
     return out
 
 
-def _refine(runs: Sequence[GA], offspring: list[Array]) -> list[NDArray[np.bool_]]:
+def _refine(runs: Sequence[GA], off: Array, spans: list[slice]) -> NDArray[np.bool_]:
     """A share of each run's children takes the pseudo-inverse step (the paper's step 8);
     repaired. Returns which children took it."""
-    refined = [np.zeros(len(off), dtype=bool) for off in offspring]
-    picked, rows = {}, {}
-    for i, (ga, off) in enumerate(zip(runs, offspring)):
-        n = round(ga.refine_conf.share * len(off)) if hasattr(ga.toolbox, "refine") else 0
+    refined = np.zeros(len(off), dtype=bool)
+    picked = {}
+    for i, ga in enumerate(runs):
+        lam = spans[i].stop - spans[i].start
+        n = round(ga.refine_conf.share * lam) if hasattr(ga.toolbox, "refine") else 0
         if n:
-            rows[i] = ga.rng.choice(len(off), size=n, replace=False)
-            picked[i] = (off[rows[i]],)
-            refined[i][rows[i]] = True
-    if not picked:
-        return refined
-    t0 = time.perf_counter()
-    _apply(runs, "refine", picked)
-    share = (time.perf_counter() - t0) / len(picked) if len(picked) > 1 else 0.0
-    for i, (block,) in picked.items():
-        offspring[i][rows[i]] = block
-        runs[i].toolbox.repair(offspring[i])
-        runs[i].shared_s["refine_s"] += share
+            picked[i] = (spans[i].start + ga.rng.choice(lam, size=n, replace=False),)
+            refined[picked[i][0]] = True
+    if picked:
+        t0 = time.perf_counter()
+        _apply(runs, "refine", picked, off)
+        if len(runs) > 1:  # alone, the toolbox's refine is timed by the run's callback
+            for i in picked:
+                runs[i].shared_s["refine_s"] += (time.perf_counter() - t0) / len(picked)
+        _repair(runs, off, spans, list(picked))
     return refined
 
 
-def _evaluate(runs: Sequence[GA], changed: list[Array]) -> list[Array]:
-    """The costs of each run's changed offspring, from one call of the problem's cost (a run
-    alone: its toolbox's ``evaluate``, which a callback may time)."""
+def _evaluate(runs: Sequence[GA], X: Array, bounds: NDArray[np.intp]) -> Array:
+    """The costs of the changed offspring ``X`` of all runs (run ``i``'s rows from
+    ``bounds[i]`` to ``bounds[i + 1]``) in one call of the problem's cost (a run alone: its
+    toolbox's ``evaluate``, which a callback may time)."""
     if len(runs) == 1:
-        return [runs[0].toolbox.evaluate(changed[0]) if len(changed[0]) else np.empty(0)]
-    counts = [len(c) for c in changed]
-    if not sum(counts):
-        return [np.empty(0) for _ in runs]
+        return runs[0].toolbox.evaluate(X) if len(X) else np.empty(0)
+    if not len(X):
+        return np.empty(0)
     t0 = time.perf_counter()
-    values = runs[0].problem.costs(np.concatenate(changed))
-    spent = time.perf_counter() - t0
-    for ga, n in zip(runs, counts):
-        ga.shared_s["eval_s"] += spent * n / sum(counts)
-    return np.split(values, np.cumsum(counts)[:-1])
+    values = runs[0].problem.costs(X)
+    for a, b in itertools.pairwise(bounds):  # a run's one changed child: its cost as for one genome alone
+        if b - a == 1:  # (np.einsum adds in another order for one genome than for many)
+            values[a:b] = runs[0].problem.costs(X[a:b])
+    spent = (time.perf_counter() - t0) / len(X)
+    for ga, a, b in zip(runs, bounds[:-1], bounds[1:]):
+        ga.shared_s["eval_s"] += spent * (b - a)
+    return values
+
+
+def _survive(runs: Sequence[GA], off: Array, off_costs: Array, spans: list[slice], new: NDArray[np.intp],
+             values: Array, refined: NDArray[np.bool_], starts: NDArray[np.intp]) -> None:  # fmt: skip
+    """The rest of the generation for every run: count its evaluations, keep its survivors
+    (runs with the same strategy and shapes at once), remember its best, decide whether it stops."""
+    bounds = np.searchsorted(new, starts)
+    groups: dict[tuple, list[int]] = {}
+    for i, ga in enumerate(runs):
+        lam, mu = spans[i].stop - spans[i].start, ga.pop_conf.mu
+        strategy = ga.strategy if lam >= mu else Strategy.mu_plus_lambda
+        groups.setdefault((strategy, ga.elite, lam, len(ga.pop), mu), []).append(i)
+    for (strategy, elite, lam, _, mu), group in groups.items():
+        Q = off[np.concatenate([np.arange(spans[i].start, spans[i].stop) for i in group])].reshape(len(group), lam, -1)
+        Qc = np.concatenate([off_costs[spans[i]] for i in group]).reshape(len(group), lam)
+        P, Pc = np.stack([runs[i].pop for i in group]), np.stack([runs[i].costs for i in group])
+        genes, pool, keep = SURVIVE_TOGETHER[strategy](P, Pc, Q, Qc, mu, elite)
+        pop = np.take_along_axis(genes, keep[:, :, None], axis=1)
+        costs = np.take_along_axis(pool, keep, axis=1)
+        finite = np.where(np.isfinite(costs), costs, np.inf)
+        best = np.argmin(finite, axis=1)  # the first best: the current genome, and the one offered
+        for g, i in enumerate(group):
+            ga, vals = runs[i], values[bounds[i] : bounds[i + 1]]
+            ga.nevals += len(vals) + int(refined[spans[i]].sum())  # a pseudo-inverse step evaluates its residual once
+            ga.n_nonfinite = len(vals) - int(np.isfinite(vals).sum())
+            ga.pop, ga.costs, ga.gen, ga._best = pop[g], costs[g], ga.gen + 1, int(best[g])
+            if finite[g, best[g]] < ga.best_cost:
+                ga.best_x, ga.best_cost = np.array(pop[g, best[g]], dtype=float), float(costs[g, best[g]])
+            ga._update_stagnation()
+            ga.stop_reason = ga._stop_reason()
+
+
+def _ranked(costs: Array) -> NDArray[np.intp]:
+    """:func:`rank` of each row of ``costs`` (runs, n)."""
+    return np.argsort(np.where(np.isfinite(costs), costs, np.inf), axis=1, kind="stable")
+
+
+def _plus_together(P, Pc, Q, Qc, mu, elite):
+    genes, pool = np.concatenate([P, Q], axis=1), np.concatenate([Pc, Qc], axis=1)
+    return genes, pool, _ranked(pool)[:, :mu]
+
+
+def _comma_together(P, Pc, Q, Qc, mu, elite):
+    return Q, Qc, _ranked(Qc)[:, :mu]
+
+
+def _generational_together(P, Pc, Q, Qc, mu, elite):
+    genes, pool = np.concatenate([P, Q], axis=1), np.concatenate([Pc, Qc], axis=1)
+    return genes, pool, np.concatenate([_ranked(Pc)[:, :elite], Pc.shape[1] + _ranked(Qc)[:, : mu - elite]], axis=1)
+
+
+# The survival strategies for many runs at once: (genes, costs, indices of the survivors), the
+# same survivors as SURVIVAL's for each run.
+SURVIVE_TOGETHER = {Strategy.mu_plus_lambda: _plus_together, Strategy.mu_comma_lambda: _comma_together,
+                    Strategy.generational: _generational_together}  # fmt: skip
