@@ -111,13 +111,13 @@ class ConvergenceLog(Callback):
     """``convergence.csv``: one row per generation, flushed at once, so that an interrupted run
     keeps every finished generation. Resuming, the rows up to ``keep_until_gen`` are kept (rows
     a killed run wrote past its last checkpoint are written again by the resumed run).
-    ``flush_every``: rows kept in memory and written (whole, in one write) every that many
-    generations, at the end and at an interrupt, as runs evolved together do; a checkpoint
-    callback of the same cadence placed after this one then never holds a generation that the
-    file does not."""
+    ``buffered``: the rows are kept in memory and written, whole rows in one write, when
+    :meth:`flush` is called (by the run's :class:`Checkpoint` before it saves), at the end and
+    at an interrupt, as runs evolved together write them: the file then always holds every
+    generation the checkpoint holds."""
 
-    def __init__(self, path: str | Path, keep_until_gen: int | None = None, flush_every: int | None = None):
-        self.path, self.keep_until_gen, self.flush_every = Path(path), keep_until_gen, flush_every
+    def __init__(self, path: str | Path, keep_until_gen: int | None = None, buffered: bool = False):
+        self.path, self.keep_until_gen, self.buffered = Path(path), keep_until_gen, buffered
 
     def on_start(self, algorithm: Algorithm) -> None:
         kept = []
@@ -133,27 +133,28 @@ class ConvergenceLog(Callback):
             writer.writerows(kept)
         os.replace(tmp, self.path)
         self._file = open(self.path, "a", newline="")
-        self._buffer = io.StringIO() if self.flush_every is not None else None
+        self._buffer = io.StringIO() if self.buffered else None
         self._writer = csv.DictWriter(self._buffer or self._file, fieldnames=COLUMNS, extrasaction="ignore", restval="")
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
         self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
-        if self._buffer is None or not algorithm.has_next() or (self.flush_every and algorithm.gen % self.flush_every == 0):
-            self._flush()
+        if self._buffer is None:
+            self._file.flush()
 
-    def _flush(self) -> None:
-        if self._buffer is not None:
+    def flush(self) -> None:
+        """Write the rows held in memory."""
+        if self._buffer is not None and self._buffer.tell():
             self._file.write(self._buffer.getvalue())  # whole rows in one write: a kill leaves no half row
             self._buffer.seek(0)
             self._buffer.truncate()
         self._file.flush()
 
     def on_interrupt(self, algorithm: Algorithm) -> None:
-        self._flush()
+        self.flush()
         self._file.close()
 
     def on_end(self, algorithm: Algorithm, result: Result) -> None:
-        self._flush()
+        self.flush()
         self._file.close()
 
 
@@ -208,16 +209,22 @@ class Progress(Callback):
 class Checkpoint(Callback):
     """``checkpoint.npz`` every ``every`` generations, after the last one, and on an interrupt
     (the state after the last finished generation), with the run's config, its groups' options and
-    ``inputs`` (hashes of the robot and data it ran on: :func:`zrp_ga.run.build.inputs`)."""
+    ``inputs`` (hashes of the robot and data it ran on: :func:`zrp_ga.run.build.inputs`).
+    ``min_interval_s``: no checkpoint every ``every`` generations sooner than this after the
+    last (runs evolved together: a batch's runs are short, their checkpoints a cost);
+    ``before_save``: called before each save (a buffered :class:`ConvergenceLog`'s flush)."""
 
     def __init__(self, path: str | Path, every: int, config: dict, choices: dict | None = None,
-                 inputs: dict | None = None):  # fmt: skip
+                 inputs: dict | None = None, min_interval_s: float = 0.0, before_save: Callable[[], None] | None = None):  # fmt: skip
         self.path, self.every, self.config, self.choices = Path(path), every, config, choices or {}
         self.inputs = inputs or {}
+        self.min_interval_s, self.before_save = min_interval_s, before_save
+        self._saved_at = time.monotonic()
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
         self.last = algorithm.state()
-        if not algorithm.has_next() or (self.every and algorithm.gen % self.every == 0):
+        due = self.every and algorithm.gen % self.every == 0 and time.monotonic() - self._saved_at >= self.min_interval_s
+        if not algorithm.has_next() or due:
             self.save()
 
     def on_interrupt(self, algorithm: Algorithm) -> None:
@@ -225,4 +232,7 @@ class Checkpoint(Callback):
             self.save()
 
     def save(self) -> None:
+        if self.before_save is not None:  # the buffered convergence rows first: the file holds what the checkpoint holds
+            self.before_save()
+        self._saved_at = time.monotonic()
         checkpoint.save(self.path, {**self.last, "config": self.config, "choices": self.choices, "inputs": self.inputs})

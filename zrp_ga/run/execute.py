@@ -189,6 +189,10 @@ def sweep_batch(jobs: Sequence[Job], cache: Cache = CACHE,
 
 
 INTERRUPTED = "KeyboardInterrupt: continue by running the sweep again"
+# Runs evolved together save their checkpoints every checkpoint_every generations, but no sooner
+# than this many seconds after the last (and at the end, and at Ctrl-C): a batch of short runs
+# then writes each run's checkpoint once, and a kill loses at most this much of a batch's work.
+BATCH_CHECKPOINT_S = 10.0
 
 
 def _failed(sweep: Sweep, exc: BaseException) -> None:
@@ -288,10 +292,11 @@ def _callbacks(p: Prepared, callbacks: Any) -> tuple:
     resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
     every = int(cfg.checkpoint_every) if p.algorithm.checkpointable else 0
     keep = None if p.state is None else int(p.state["gen"])
-    cbs = [callbacks.Timing(), callbacks.Validation(task.judge),
-           callbacks.ConvergenceLog(p.out / directory.CONVERGENCE, keep, every)]  # fmt: skip
+    rows = callbacks.ConvergenceLog(p.out / directory.CONVERGENCE, keep, buffered=True)
+    cbs = [callbacks.Timing(), callbacks.Validation(task.judge), rows]
     if every:
-        cbs.append(callbacks.Checkpoint(p.out / directory.CHECKPOINT, every, resolved, p.choices, inputs(cfg, task)))
+        cbs.append(callbacks.Checkpoint(p.out / directory.CHECKPOINT, every, resolved, p.choices, inputs(cfg, task),
+                                        BATCH_CHECKPOINT_S, rows.flush))  # fmt: skip
     return np.random.default_rng([seed, 0]), cbs, resolved, seeded
 
 
