@@ -184,7 +184,7 @@ def sweep_batch(jobs: Sequence[Job], cache: Cache = CACHE,
                 directory.record(sweep, "done")
         else:
             for (k, _, _), value in zip(group, _together(group, cache, job)):
-                out[k] = value
+                out[k] = value if isinstance(value, Exception) else objective(value)
     return out
 
 
@@ -199,13 +199,23 @@ def _failed(sweep: Sweep, exc: BaseException) -> None:
     directory.record(sweep, "failed", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
 
 
-def _together(group: list[tuple[int, Prepared, Sweep]], cache: Cache, job: Callable) -> list[Any]:
+def run_together(prepared: Sequence[Prepared], cache: Cache = CACHE) -> list[tuple[Any, dict] | Exception]:
+    """Run prepared GA runs on one problem instance (the same ``task``) evolved together, each
+    writing into its ``out`` (None: nothing written) what it writes alone; per run what
+    :func:`execute` returns (the result and the summary), or the exception it failed with.
+    :func:`zrp_ga.calibrate` over many seeds runs so."""
+    if len({id(p.task) for p in prepared}) > 1:
+        raise ValueError("runs evolved together share one problem instance")
+    return _together([(k, p, None) for k, p in enumerate(prepared)], cache, lambda k: contextlib.nullcontext())
+
+
+def _together(group: list[tuple[int, Prepared, Sweep | None]], cache: Cache, job: Callable) -> list[Any]:
     """Evolve the prepared runs of ``group`` (GA runs on one problem instance) together, each
-    in its own directory with everything :func:`run_prepared` and :func:`execute` give a run
-    alone: its lock, status, convergence log (written at every checkpoint: the rows in memory
-    between them), checkpoints, summary and files, manifest line. Per run its objective or the
-    exception it failed with; KeyboardInterrupt after every unfinished run saved its checkpoint
-    and recorded it."""
+    in its own directory (if it has one) with everything :func:`run_prepared` and
+    :func:`execute` give a run alone: its lock, status, convergence log (written at every
+    checkpoint: the rows in memory between them), checkpoints, summary and files, manifest
+    line (for a sweep's job). Per run its result and summary, or the exception it failed with;
+    KeyboardInterrupt after every unfinished run saved its checkpoint and recorded it."""
     from threadpoolctl import threadpool_limits
 
     from zrp_ga import callbacks, summary
@@ -217,10 +227,11 @@ def _together(group: list[tuple[int, Prepared, Sweep]], cache: Cache, job: Calla
         for i, (k, p, _) in enumerate(group):
             with job(k):
                 try:
-                    p.out.mkdir(parents=True, exist_ok=True)
-                    stack.enter_context(directory.locked(p.out))  # one run per directory at a time
-                    directory.remove_temporary(p.out)
-                    directory.write_status(p.out, "running")
+                    if p.out is not None:
+                        p.out.mkdir(parents=True, exist_ok=True)
+                        stack.enter_context(directory.locked(p.out))  # one run per directory at a time
+                        directory.remove_temporary(p.out)
+                        directory.write_status(p.out, "running")
                     setups.append(_callbacks(p, callbacks))
                     live.append(i)
                 except Exception as exc:
@@ -229,20 +240,24 @@ def _together(group: list[tuple[int, Prepared, Sweep]], cache: Cache, job: Calla
         def finished(j: int, result: Any) -> None:  # run live[j] ended: its summary and files, as execute writes them
             i = live[j]
             k, p, sweep = group[i]
+            where = None if sweep is None else sweep.dir
             with job(k):
                 written, x = summary.build(p.task, result, p.cfg, setups[j][2], diagnostics[j], p.algorithm.elapsed(), p.choices)
-                written["objective"] = summary.objective(p.cfg, p.task, written, p.instance, cache, sweep.dir)
-                summary.write(p.out, p.task, result, written, x)
+                written["objective"] = summary.objective(p.cfg, p.task, written, p.instance, cache, where)
+                if p.out is not None:
+                    summary.write(p.out, p.task, result, written, x)
                 for w in written["warnings"]:
                     warn(w, log)
-                directory.write_status(p.out, "done")
-                directory.record(sweep, "done")
-                out[i] = float(written["objective"])
+                if p.out is not None:
+                    directory.write_status(p.out, "done")
+                if sweep is not None:
+                    directory.record(sweep, "done")
+                out[i] = (result, written)
 
         try:
             with threadpool_limits(limits=1, user_api="blas"):  # see execute
-                diagnostics = [summary.diagnostics(group[i][1].task, group[i][1].state is None, group[i][1].instance,
-                                                   cache, group[i][2].dir) for i in live]  # fmt: skip
+                diagnostics = [summary.diagnostics(group[i][1].task, group[i][1].state is None, group[i][1].instance, cache,
+                                                   None if group[i][2] is None else group[i][2].dir) for i in live]  # fmt: skip
                 algorithms = [group[i][1].algorithm for i in live]
                 for a, setup in zip(algorithms, setups):
                     a.random_state = setup[3]
@@ -259,9 +274,11 @@ def _together(group: list[tuple[int, Prepared, Sweep]], cache: Cache, job: Calla
                 if out[i] is None:
                     k, p, sweep = group[i]
                     if interrupted:
-                        directory.remove_temporary(p.out)
-                        directory.write_status(p.out, "interrupted", repr(exc))
-                        directory.record(sweep, "interrupted", INTERRUPTED)
+                        if p.out is not None:
+                            directory.remove_temporary(p.out)
+                            directory.write_status(p.out, "interrupted", repr(exc))
+                        if sweep is not None:
+                            directory.record(sweep, "interrupted", INTERRUPTED)
                     else:
                         out[i] = exc if isinstance(exc, Exception) else RuntimeError(repr(exc))
             if interrupted or not isinstance(exc, Exception):
@@ -270,11 +287,13 @@ def _together(group: list[tuple[int, Prepared, Sweep]], cache: Cache, job: Calla
             if isinstance(value, Exception):
                 k, p, sweep = group[i]
                 with job(k):
-                    log.error("%s: %s: %s", p.out, type(value).__name__, value)
-                    directory.remove_temporary(p.out)
-                    with contextlib.suppress(OSError):  # a full disk: the error itself tells
-                        directory.write_status(p.out, "failed", repr(value))
-                    _failed(sweep, value)
+                    log.error("%s: %s: %s", p.out or f"run {k}", type(value).__name__, value)
+                    if p.out is not None:
+                        directory.remove_temporary(p.out)
+                        with contextlib.suppress(OSError):  # a full disk: the error itself tells
+                            directory.write_status(p.out, "failed", repr(value))
+                    if sweep is not None:
+                        _failed(sweep, value)
     return out
 
 
@@ -290,13 +309,14 @@ def _callbacks(p: Prepared, callbacks: Any) -> tuple:
     seeded = random.getstate()
     random.setstate(before)
     resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
-    every = int(cfg.checkpoint_every) if p.algorithm.checkpointable else 0
-    keep = None if p.state is None else int(p.state["gen"])
-    rows = callbacks.ConvergenceLog(p.out / directory.CONVERGENCE, keep, buffered=True)
-    cbs = [callbacks.Timing(), callbacks.Validation(task.judge), rows]
-    if every:
-        cbs.append(callbacks.Checkpoint(p.out / directory.CHECKPOINT, every, resolved, p.choices, inputs(cfg, task),
-                                        BATCH_CHECKPOINT_S, rows.flush))  # fmt: skip
+    cbs = [callbacks.Timing(), callbacks.Validation(task.judge)]
+    if p.out is not None:
+        every = int(cfg.checkpoint_every) if p.algorithm.checkpointable else 0
+        rows = callbacks.ConvergenceLog(p.out / directory.CONVERGENCE, None if p.state is None else int(p.state["gen"]), buffered=True)
+        cbs.append(rows)
+        if every:
+            cbs.append(callbacks.Checkpoint(p.out / directory.CHECKPOINT, every, resolved, p.choices, inputs(cfg, task),
+                                            BATCH_CHECKPOINT_S, rows.flush))  # fmt: skip
     return np.random.default_rng([seed, 0]), cbs, resolved, seeded
 
 
