@@ -143,6 +143,8 @@ class ConvergenceLog(Callback):
 
     def flush(self) -> None:
         """Write the rows held in memory."""
+        if self._file.closed:  # the run ended (an interrupt while its files were written)
+            return
         if self._buffer is not None and self._buffer.tell():
             self._file.write(self._buffer.getvalue())  # whole rows in one write: a kill leaves no half row
             self._buffer.seek(0)
