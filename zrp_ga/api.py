@@ -155,7 +155,7 @@ def calibrate(
     """
     with errors.python_warnings():
         if isinstance(seed, (int, np.integer)):
-            return _calibrate(robot, data, validation, algorithm, [int(seed)], out, progress, settings)[0]
+            return _calibrate(robot, data, validation, algorithm, [int(seed)], None if out is None else [out], progress, settings)[0]
         seeds = [int(s) for s in seed]
         if not seeds or len(set(seeds)) < len(seeds):
             raise ValueError(f"calibrate(): seed: a list of distinct seeds, got {list(seed)}")
