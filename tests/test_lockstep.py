@@ -77,6 +77,7 @@ def _checkpoint(path: Path) -> dict:
 
 
 def _same_run(a: Path, b: Path) -> None:
+    assert (a / directory.CONVERGENCE).read_bytes().count(b"\r\n") == (b / directory.CONVERGENCE).read_bytes().count(b"\r\n")
     assert _rows(a / directory.CONVERGENCE) == _rows(b / directory.CONVERGENCE), a.name
     assert _summary(a / directory.SUMMARY) == _summary(b / directory.SUMMARY), a.name
     ca, cb = _checkpoint(a / directory.CHECKPOINT), _checkpoint(b / directory.CHECKPOINT)
@@ -176,3 +177,35 @@ def test_calibrate_over_many_seeds_gives_each_seeds_calibration(tmp_path):
     assert not many[0].history["best"].equals(many[1].history["best"])  # the seeds differ
     with pytest.raises(ValueError, match="distinct seeds"):
         zrp_ga.calibrate(arm, (q[:40], p[:40]), seed=[1, 1], **kw)
+
+
+def test_an_interrupted_batch_continues_to_the_files_of_an_uninterrupted_one(batch_and_alone, tmp_path, monkeypatch):
+    """Ctrl-C in the middle of a batch: every unfinished run saves its checkpoint and its rows
+    up to it and is recorded interrupted; the same jobs run again continue from there to the
+    files the uninterrupted batch wrote."""
+    from zrp_ga import callbacks
+
+    together = batch_and_alone[0]
+    original = callbacks.Checkpoint.on_generation
+
+    def interrupted(self, algorithm, row):
+        if algorithm.gen == 6 and "/3/" in str(self.path):
+            raise KeyboardInterrupt
+        original(self, algorithm, row)
+
+    monkeypatch.setattr(callbacks.Checkpoint, "on_generation", interrupted)
+    cache = Cache()
+    with pytest.raises(KeyboardInterrupt):
+        execute.sweep_batch(_jobs(tmp_path, MIXED), cache)
+    states = {r["job"]: r["status"] for r in directory.job_states(tmp_path)}
+    assert "interrupted" in states.values()
+    for k, state in states.items():
+        if state == "interrupted":
+            saved = _checkpoint(tmp_path / str(k) / directory.CHECKPOINT)["__json__"]["gen"]
+            assert int(_rows(tmp_path / str(k) / directory.CONVERGENCE)[-1]["gen"]) >= saved  # the rows reach the checkpoint
+    monkeypatch.setattr(callbacks.Checkpoint, "on_generation", original)
+    values = execute.sweep_batch(_jobs(tmp_path, MIXED), cache)
+    assert not [v for v in values if isinstance(v, Exception)]
+    for k in range(len(MIXED)):
+        _same_run(tmp_path / str(k), together / str(k))
+    assert [r["status"] for r in directory.job_states(tmp_path)] == ["done"] * len(MIXED)

@@ -164,8 +164,6 @@ def calibrate(
 
 
 def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, progress: bool, settings: dict) -> list[Calibration]:
-    from threadpoolctl import threadpool_limits
-
     from zrp_ga import robots
     from zrp_ga.problems import measured
     from zrp_ga.run import build, execute
@@ -185,8 +183,7 @@ def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, 
     if data is not None:
         conf = config.section(config.MeasuredConf, {k: v for k, v in base.problem.items() if k != "_target_"}, "problem")
         calib, val = _measurements(data, arm, conf, "data"), _measurements(validation, arm, conf, "validation")
-        with threadpool_limits(limits=1, user_api="blas"):  # as zrp_ga.run.build builds a file's: BLAS threads add in any order
-            task = measured.from_measurements(arm, calib, val, conf)
+        task = measured.from_measurements(arm, calib, val, conf)
     cache = Cache()  # the instance is the one built here, not the config's
     prepared = []
     for k, seed in enumerate(seeds):

@@ -137,9 +137,11 @@ class ConvergenceLog(Callback):
         self._writer = csv.DictWriter(self._buffer or self._file, fieldnames=COLUMNS, extrasaction="ignore", restval="")
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
-        self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
         if self._buffer is None:
+            self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
             self._file.flush()
+        else:  # the same line csv writes for numbers (nothing to quote), joined directly
+            self._buffer.write(",".join(_cell(row.get(k, "")) for k in COLUMNS) + "\r\n")
 
     def flush(self) -> None:
         """Write the rows held in memory."""
@@ -158,6 +160,14 @@ class ConvergenceLog(Callback):
     def on_end(self, algorithm: Algorithm, result: Result) -> None:
         self.flush()
         self._file.close()
+
+
+def _cell(v: object) -> str:
+    """A value as ``csv.DictWriter`` writes it in :class:`ConvergenceLog` (floats by repr)."""
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    text = "" if v is None else str(v)
+    return f'"{text.replace(chr(34), 2 * chr(34))}"' if any(c in text for c in ',"\r\n') else text
 
 
 def time_left(first: tuple[float, float], now: tuple[float, float]) -> float | None:

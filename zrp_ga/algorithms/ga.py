@@ -151,10 +151,9 @@ class GA(Algorithm):
     def draws_from_random(self) -> bool:
         """Whether an operator of this run draws from Python's ``random`` (DEAP's own, through
         the adapter): such a run is not evolved together with others, which would share that state."""
-        from hydra.utils import get_method
-
-        ops = [self.selection.op, self.refine_conf.op] + [v.op for v in self.variation.values()]
-        return any(node is not None and not getattr(get_method(node["_target_"]), "batched", False) for node in ops)
+        ops = [("selection.op", self.selection.op), ("refine.op", self.refine_conf.op)]
+        ops += [(f"{key}.op", v.op) for key, v in self.variation.items()]
+        return any(node is not None and not getattr(operators.target(node, key)[0], "batched", False) for key, node in ops)
 
     def _offspring_count(self) -> int:
         c = self.pop_conf

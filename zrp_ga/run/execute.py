@@ -223,6 +223,7 @@ def _together(group: list[tuple[int, Prepared, Sweep | None]], cache: Cache, job
     out: list[Any] = [None] * len(group)
     live: list[int] = []
     setups: list[tuple] = []
+    hashed: dict[str, dict] = {}  # instance key -> the hashes of its robot and data files
     with contextlib.ExitStack() as stack:
         for i, (k, p, _) in enumerate(group):
             with job(k):
@@ -232,7 +233,7 @@ def _together(group: list[tuple[int, Prepared, Sweep | None]], cache: Cache, job
                         stack.enter_context(directory.locked(p.out))  # one run per directory at a time
                         directory.remove_temporary(p.out)
                         directory.write_status(p.out, "running")
-                    setups.append(_callbacks(p, callbacks))
+                    setups.append(_callbacks(p, callbacks, hashed))
                     live.append(i)
                 except Exception as exc:
                     out[i] = exc
@@ -297,7 +298,7 @@ def _together(group: list[tuple[int, Prepared, Sweep | None]], cache: Cache, job
     return out
 
 
-def _callbacks(p: Prepared, callbacks: Any) -> tuple:
+def _callbacks(p: Prepared, callbacks: Any, hashed: dict[str, dict]) -> tuple:
     """A run's generator, callbacks (those :func:`execute` gives it, the convergence log written
     at each checkpoint), resolved config and seeded state of ``random``."""
     import numpy as np
@@ -315,7 +316,9 @@ def _callbacks(p: Prepared, callbacks: Any) -> tuple:
         rows = callbacks.ConvergenceLog(p.out / directory.CONVERGENCE, None if p.state is None else int(p.state["gen"]), buffered=True)
         cbs.append(rows)
         if every:
-            cbs.append(callbacks.Checkpoint(p.out / directory.CHECKPOINT, every, resolved, p.choices, inputs(cfg, task),
+            if p.instance not in hashed:  # the runs of a batch share their instance: hashed once
+                hashed[p.instance] = inputs(cfg, task)
+            cbs.append(callbacks.Checkpoint(p.out / directory.CHECKPOINT, every, resolved, p.choices, hashed[p.instance],
                                             BATCH_CHECKPOINT_S, rows.flush))  # fmt: skip
     return np.random.default_rng([seed, 0]), cbs, resolved, seeded
 
