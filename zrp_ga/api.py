@@ -14,8 +14,10 @@ True
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import difflib
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -110,11 +112,11 @@ def calibrate(
     *,
     validation: Measurements | str | Path | None = None,
     algorithm: str = "ga",
-    seed: int = 0,
+    seed: int | Sequence[int] = 0,
     out: str | Path | None = None,
     progress: bool = False,
     **settings: Any,
-) -> Calibration:
+) -> Calibration | list[Calibration]:
     """Calibrate ``robot`` (a :class:`ZRPRobot`, a preset name or a robot file) on ``data``
     measured in an instrument's frame, validated on ``validation``; without data, on the
     simulated problem of the config (the paper's case study unless ``problem=...`` says otherwise).
@@ -136,6 +138,11 @@ def calibrate(
     (as ``zrp-ga`` writes them, with the same checks: a directory holding a run is refused).
     Warnings are Python warnings of class :class:`zrp_ga.ZrpGaWarning`.
 
+    ``seed``: a list of seeds gives a list of calibrations, one per seed, each what
+    ``calibrate(..., seed=s)`` gives; GA runs on the same data (measured data given here) are
+    evolved together, in one evaluation of all their offspring per generation. With ``out``,
+    each run writes into ``out/seed_S``.
+
     >>> import numpy as np, zrp_ga
     >>> from zrp_ga import kinematics, robots
     >>> arm = robots.load("puma560")
@@ -147,10 +154,16 @@ def calibrate(
     (True, {'length': 'mm', 'joint_angle': 'deg'})
     """
     with errors.python_warnings():
-        return _calibrate(robot, data, validation, algorithm, seed, out, progress, settings)
+        if isinstance(seed, (int, np.integer)):
+            return _calibrate(robot, data, validation, algorithm, [int(seed)], None if out is None else [out], progress, settings)[0]
+        seeds = [int(s) for s in seed]
+        if not seeds or len(set(seeds)) < len(seeds):
+            raise ValueError(f"calibrate(): seed: a list of distinct seeds, got {list(seed)}")
+        outs = None if out is None else [Path(out) / f"seed_{s}" for s in seeds]
+        return _calibrate(robot, data, validation, algorithm, seeds, outs, progress, settings)
 
 
-def _calibrate(robot, data, validation, algorithm: str, seed: int, out, progress: bool, settings: dict) -> Calibration:
+def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, progress: bool, settings: dict) -> list[Calibration]:
     from zrp_ga import robots
     from zrp_ga.problems import measured
     from zrp_ga.run import build, execute
@@ -158,28 +171,41 @@ def _calibrate(robot, data, validation, algorithm: str, seed: int, out, progress
 
     measured_problem = data is not None and not isinstance(settings.get("problem"), str)  # problem={...}: its keys
     choices = {k: v for k, v in settings.items() if not isinstance(v, dict)}
-    first = _overrides(algorithm, seed, {})  # the keywords first: a misspelt one would stop Hydra
+    first = _overrides(algorithm, seeds[0], {})  # the keywords first: a misspelt one would stop Hydra
     _check_keys(dict.fromkeys(settings), _load(["problem=measured"] * measured_problem + first))
-    _check_keys(settings, _load(["problem=measured"] * measured_problem + _overrides(algorithm, seed, choices)))
-    over = _overrides(algorithm, seed, settings)
+    _check_keys(settings, _load(["problem=measured"] * measured_problem + _overrides(algorithm, seeds[0], choices)))
+    over = _overrides(algorithm, seeds[0], settings)
     if measured_problem:
         over.insert(0, "problem=measured")
-    cfg = _load(over + ["problem.calibration_file=memory"] if data is not None else over)
+    base = _load(over + ["problem.calibration_file=memory"] if data is not None else over)
     arm = robot if isinstance(robot, ZRPRobot) else robots.load(**_robot_source(robot))
-    if data is None:
-        task = config.instantiate(cfg.problem, "problem", robot=arm, run_seed=seed)
-    else:
-        conf = config.section(config.MeasuredConf, {k: v for k, v in cfg.problem.items() if k != "_target_"}, "problem")
+    task = None
+    if data is not None:
+        conf = config.section(config.MeasuredConf, {k: v for k, v in base.problem.items() if k != "_target_"}, "problem")
         calib, val = _measurements(data, arm, conf, "data"), _measurements(validation, arm, conf, "validation")
         task = measured.from_measurements(arm, calib, val, conf)
     cache = Cache()  # the instance is the one built here, not the config's
-    prepared = build.prepare(cfg, None if out is None else Path(out), cache=cache, task=task)
-    if out is None:
-        result, summary = execute.execute(prepared, None, progress, cache=cache)
+    prepared = []
+    for k, seed in enumerate(seeds):
+        cfg = copy.deepcopy(base)  # DictConfig.copy shares its nodes
+        cfg.seed = seed
+        seeded = task or config.instantiate(cfg.problem, "problem", robot=arm, run_seed=seed)
+        prepared.append(build.prepare(cfg, None if outs is None else Path(outs[k]), cache=cache, task=seeded))
+    together = len(prepared) > 1 and task is not None and all(
+        p.algorithm.checkpointable and not p.algorithm.draws_from_random() for p in prepared)  # the GA on one instance
+    if together:
+        ran = execute.run_together(prepared, cache)
+        failed = [r for r in ran if isinstance(r, Exception)]
+        if failed:
+            raise failed[0]
     else:
-        result, summary = execute.run_prepared(prepared, progress, cache=cache)
-    x = np.array([summary["best_genome"][k] for k in task.problem.names])
-    return Calibration(task.calibrated_robot(x), result, summary, task)
+        ran = [execute.execute(p, None, progress, cache=cache) if p.out is None else execute.run_prepared(p, progress, cache=cache)
+               for p in prepared]  # fmt: skip
+    out = []
+    for p, (result, summary) in zip(prepared, ran):
+        x = np.array([summary["best_genome"][k] for k in p.task.problem.names])
+        out.append(Calibration(p.task.calibrated_robot(x), result, summary, p.task))
+    return out
 
 
 def _robot_source(robot: str | Path) -> dict:

@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import csv
 import functools
+import io
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +38,11 @@ class Timing(Callback):
         for alias, key in (("evaluate", "eval_s"), ("refine", "refine_s")):
             if hasattr(algorithm.toolbox, alias):
                 algorithm.toolbox.decorate(alias, self._timed(key))
-        self.last = time.perf_counter()
+        self.last = self._now(algorithm)
+
+    @staticmethod
+    def _now(algorithm: Algorithm) -> float:
+        return time.perf_counter() if algorithm.clock is None else algorithm.clock
 
     def _timed(self, key: str) -> Callable:
         def decorator(fn: Callable) -> Callable:
@@ -54,10 +59,12 @@ class Timing(Callback):
         return decorator
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
-        now = time.perf_counter()
+        now = self._now(algorithm)  # evolved with other runs: this run's share of their time
         total = now - self.last
-        row.update(self.spent, bookkeeping_s=total - sum(self.spent.values()), wall_s=algorithm.elapsed())
+        spent = {k: v + algorithm.shared_s.get(k, 0.0) for k, v in self.spent.items()}
+        row.update(spent, bookkeeping_s=total - sum(spent.values()), wall_s=algorithm.elapsed())
         self.spent = dict.fromkeys(self.spent, 0.0)
+        algorithm.shared_s = dict.fromkeys(algorithm.shared_s, 0.0)
         self.last = now
 
 
@@ -68,6 +75,25 @@ class Validation(Callback):
     def __init__(self, judge: Judge):
         self.judge = judge
         self._last: tuple[bytes, dict] | None = None
+
+    @classmethod
+    def together(cls, pairs: Sequence[tuple[Validation, Algorithm]]) -> None:
+        """Judge the new reported genomes of runs evolved together in one call per judge (the
+        validation poses' positions of all of them at once); each callback then finds its own."""
+        todo: dict[int, list] = {}
+        for cb, algorithm in pairs:
+            x = algorithm.current()[0]
+            if x is not None:
+                x = np.asarray(x, dtype=float)
+                if cb._last is None or cb._last[0] != x.tobytes():
+                    todo.setdefault(id(cb.judge), []).append((cb, x))
+        for items in todo.values():
+            judge = items[0][0].judge
+            if len(items) < 2 or judge.layout.known_tools:  # known tools' ends are not computed `each`: alone
+                continue
+            rms, vmax = judge.validation_errors(np.stack([x for _, x in items]), each=True)
+            for (cb, x), r, m in zip(items, rms.tolist(), vmax.tolist()):
+                cb._last = (x.tobytes(), {"val_rms_m": r, "val_max_m": m, "param_err": float(judge.param_error(x)[0])})
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
         x = algorithm.current()[0]
@@ -84,10 +110,14 @@ class Validation(Callback):
 class ConvergenceLog(Callback):
     """``convergence.csv``: one row per generation, flushed at once, so that an interrupted run
     keeps every finished generation. Resuming, the rows up to ``keep_until_gen`` are kept (rows
-    a killed run wrote past its last checkpoint are written again by the resumed run)."""
+    a killed run wrote past its last checkpoint are written again by the resumed run).
+    ``buffered``: the rows are kept in memory and written, whole rows in one write, when
+    :meth:`flush` is called (by the run's :class:`Checkpoint` before it saves), at the end and
+    at an interrupt, as runs evolved together write them: the file then always holds every
+    generation the checkpoint holds."""
 
-    def __init__(self, path: str | Path, keep_until_gen: int | None = None):
-        self.path, self.keep_until_gen = Path(path), keep_until_gen
+    def __init__(self, path: str | Path, keep_until_gen: int | None = None, buffered: bool = False):
+        self.path, self.keep_until_gen, self.buffered = Path(path), keep_until_gen, buffered
 
     def on_start(self, algorithm: Algorithm) -> None:
         kept = []
@@ -103,17 +133,41 @@ class ConvergenceLog(Callback):
             writer.writerows(kept)
         os.replace(tmp, self.path)
         self._file = open(self.path, "a", newline="")
-        self._writer = csv.DictWriter(self._file, fieldnames=COLUMNS, extrasaction="ignore", restval="")
+        self._buffer = io.StringIO() if self.buffered else None
+        self._writer = csv.DictWriter(self._buffer or self._file, fieldnames=COLUMNS, extrasaction="ignore", restval="")
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
-        self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
+        if self._buffer is None:
+            self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
+            self._file.flush()
+        else:  # the same line csv writes for numbers (nothing to quote), joined directly
+            self._buffer.write(",".join(_cell(row.get(k, "")) for k in COLUMNS) + "\r\n")
+
+    def flush(self) -> None:
+        """Write the rows held in memory."""
+        if self._file.closed:  # the run ended (an interrupt while its files were written)
+            return
+        if self._buffer is not None and self._buffer.tell():
+            self._file.write(self._buffer.getvalue())  # whole rows in one write: a kill leaves no half row
+            self._buffer.seek(0)
+            self._buffer.truncate()
         self._file.flush()
 
     def on_interrupt(self, algorithm: Algorithm) -> None:
+        self.flush()
         self._file.close()
 
     def on_end(self, algorithm: Algorithm, result: Result) -> None:
+        self.flush()
         self._file.close()
+
+
+def _cell(v: object) -> str:
+    """A value as ``csv.DictWriter`` writes it in :class:`ConvergenceLog` (floats by repr)."""
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    text = "" if v is None else str(v)
+    return f'"{text.replace(chr(34), 2 * chr(34))}"' if any(c in text for c in ',"\r\n') else text
 
 
 def time_left(first: tuple[float, float], now: tuple[float, float]) -> float | None:
@@ -167,16 +221,22 @@ class Progress(Callback):
 class Checkpoint(Callback):
     """``checkpoint.npz`` every ``every`` generations, after the last one, and on an interrupt
     (the state after the last finished generation), with the run's config, its groups' options and
-    ``inputs`` (hashes of the robot and data it ran on: :func:`zrp_ga.run.build.inputs`)."""
+    ``inputs`` (hashes of the robot and data it ran on: :func:`zrp_ga.run.build.inputs`).
+    ``min_interval_s``: no checkpoint every ``every`` generations sooner than this after the
+    last (runs evolved together: a batch's runs are short, their checkpoints a cost);
+    ``before_save``: called before each save (a buffered :class:`ConvergenceLog`'s flush)."""
 
     def __init__(self, path: str | Path, every: int, config: dict, choices: dict | None = None,
-                 inputs: dict | None = None):  # fmt: skip
+                 inputs: dict | None = None, min_interval_s: float = 0.0, before_save: Callable[[], None] | None = None):  # fmt: skip
         self.path, self.every, self.config, self.choices = Path(path), every, config, choices or {}
         self.inputs = inputs or {}
+        self.min_interval_s, self.before_save = min_interval_s, before_save
+        self._saved_at = time.monotonic()
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None:
         self.last = algorithm.state()
-        if not algorithm.has_next() or (self.every and algorithm.gen % self.every == 0):
+        due = self.every and algorithm.gen % self.every == 0 and time.monotonic() - self._saved_at >= self.min_interval_s
+        if not algorithm.has_next() or due:
             self.save()
 
     def on_interrupt(self, algorithm: Algorithm) -> None:
@@ -184,4 +244,7 @@ class Checkpoint(Callback):
             self.save()
 
     def save(self) -> None:
+        if self.before_save is not None:  # the buffered convergence rows first: the file holds what the checkpoint holds
+            self.before_save()
+        self._saved_at = time.monotonic()
         checkpoint.save(self.path, {**self.last, "config": self.config, "choices": self.choices, "inputs": self.inputs})

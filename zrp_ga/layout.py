@@ -245,16 +245,23 @@ class Layout:
         out[..., self.free] = X
         return out
 
-    def unpack(self, nominal: ZRPRobot, X: ArrayLike) -> ModelArrays:
+    def unpack(self, nominal: ZRPRobot, X: ArrayLike, each: bool = False) -> ModelArrays:
         """Model arrays of genomes X (P, K) or (K,) (then P = 1), or of full genomes (with the fixed
-        genes); NaN where genes break the model."""
+        genes); NaN where genes break the model. ``each``: every genome's numbers exactly as
+        unpacking it alone gives them (``np.einsum`` adds the axes' squares in another order for
+        one genome than for many; runs evolved together judge their genomes so, to write what
+        each writes alone)."""
         from scipy.spatial.transform import Rotation
 
         X = np.atleast_2d(self.expand(X))
         P, n, blocks = X.shape[0], self.n, self._full_blocks()
         D = np.ascontiguousarray(X.T)  # the kernels need C order: their loops vectorise over P
         U = nominal.u0[:, :, None] + D[blocks["u0"]].reshape(n, 3, P)
-        length2 = np.einsum("ikp,ikp->ip", U, U)
+        if each and P > 1:  # each genome's squares summed as for P = 1: over a contiguous axis
+            Ut = np.ascontiguousarray(U.transpose(2, 0, 1))
+            length2 = np.ascontiguousarray(np.einsum("pik,pik->pi", Ut, Ut).T)
+        else:
+            length2 = np.einsum("ikp,ikp->ip", U, U)
         with np.errstate(all="ignore"):
             U /= np.sqrt(length2)[:, None, :]
         B = np.repeat(nominal.b0[:, :, None], P, axis=2)

@@ -26,10 +26,11 @@ Array = NDArray[np.float64]
 REGISTRATIONS = ("none", "rigid")
 
 
-def predicted_positions(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: Measurements) -> Array:
+def predicted_positions(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: Measurements, each: bool = False) -> Array:
     """Predicted positions (P, M, 3), m, of genomes X (P, K) or (K,) at every pose of ``data``,
-    each with its tool (``data.tool`` indexes the layout's tools, then its known tools)."""
-    m = layout.unpack(nominal, X)
+    each with its tool (``data.tool`` indexes the layout's tools, then its known tools);
+    ``each``: every genome's exactly as alone (:meth:`zrp_ga.layout.Layout.unpack`)."""
+    m = layout.unpack(nominal, X, each)
     tools = data.tools
     p = np.empty((m.U.shape[2], data.M, 3))
     for k in np.unique(tools):
@@ -39,7 +40,8 @@ def predicted_positions(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: M
     return p
 
 
-def position_errors(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: Measurements, registration: str = "none") -> Array:
+def position_errors(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: Measurements, registration: str = "none",
+                    each: bool = False) -> Array:  # fmt: skip
     """Distance (m) between measured and predicted positions at every pose of ``data``: (M,) for
     one genome (K,), (P, M) for a population (P, K); NaN where the genes break the model. With
     ``registration="rigid"`` each genome's predictions are first moved rigidly onto the
@@ -50,7 +52,7 @@ def position_errors(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: Measu
         raise ValueError(f"problem.validation_registration: {registration!r}, expected one of {', '.join(REGISTRATIONS)}")
     X = np.asarray(X, dtype=float)
     with np.errstate(all="ignore"):
-        p = predicted_positions(layout, nominal, X, data)
+        p = predicted_positions(layout, nominal, X, data, each)
         if registration == "rigid":
             p = np.array([align(pk, data.p) if np.all(np.isfinite(pk)) else pk for pk in p])
         err = np.linalg.norm(data.p[None] - p, axis=2)
@@ -75,13 +77,14 @@ class Judge:
     projector: Array | None = None  # onto the identifiable parameter directions (for param_err)
     registration: str = "none"  # of the predictions onto the validation poses (module docstring)
 
-    def validation_errors(self, x: ArrayLike) -> tuple[Array, Array]:
-        """RMS and max position error (m) on the validation poses, each (P,); NaN without them."""
+    def validation_errors(self, x: ArrayLike, each: bool = False) -> tuple[Array, Array]:
+        """RMS and max position error (m) on the validation poses, each (P,); NaN without them.
+        ``each``: every genome's exactly as judged alone (:meth:`zrp_ga.layout.Layout.unpack`)."""
         X = np.atleast_2d(np.asarray(x, dtype=float))
         if self.validation is None:
             nan = np.full(X.shape[0], np.nan)
             return nan, nan
-        err = position_errors(self.layout, self.nominal, X, self.validation, self.registration)
+        err = position_errors(self.layout, self.nominal, X, self.validation, self.registration, each)
         return np.sqrt(np.mean(err**2, axis=1)), np.max(err, axis=1)
 
     def param_error(self, x: ArrayLike) -> Array:

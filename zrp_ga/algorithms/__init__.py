@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 from deap import base
@@ -31,6 +32,19 @@ from zrp_ga.problems.protocol import Problem
 Array = NDArray[np.float64]
 
 STATS = ("best", "mean", "median", "std", "worst")
+
+
+def stats_together(costs: Sequence[Array]) -> list[dict[str, float] | None]:
+    """:func:`population_stats` of several runs' costs of one size at once (None for a run with
+    a NaN or inf cost: its statistics are of its finite costs, computed alone)."""
+    C = np.sort(np.stack(costs), axis=1)
+    ok = np.isfinite(C).all(axis=1)
+    if not ok.any():
+        return [None] * len(costs)
+    F = C[ok]
+    cols = zip(F[:, 0].tolist(), F.mean(axis=1).tolist(), np.median(F, axis=1).tolist(), F.std(axis=1).tolist(), F[:, -1].tolist())
+    it = iter([dict(zip(STATS, c)) for c in cols])
+    return [next(it) if good else None for good in ok]
 
 
 def population_stats(costs: Array) -> dict[str, float]:
@@ -69,6 +83,12 @@ class Result:
 class Callback:
     """What happens around a run; every method is optional."""
 
+    @classmethod
+    def together(cls, pairs: Sequence[tuple[Callback, Algorithm]]) -> None:
+        """Before the ``on_generation`` calls of runs evolved together
+        (:meth:`Algorithm.run_together`): the work of all these callbacks of this class, each
+        with its run, that is cheaper done at once (judging every run's new best genome in one call)."""
+
     def on_start(self, algorithm: Algorithm) -> None: ...
 
     def on_generation(self, algorithm: Algorithm, row: dict) -> None: ...
@@ -91,6 +111,10 @@ class Algorithm:
         self.best_cost = np.inf
         self.stop_reason = ""
         self._t0 = time.perf_counter()
+        self.shared_s = {"eval_s": 0.0, "refine_s": 0.0}  # this run's share of work done for runs together
+        self.clock: float | None = None  # evolved together: this run's share of the wall time so far, s
+        self.random_state: tuple | None = None  # evolved together: this run's state of `random` (Algorithm.state)
+        self._stats: dict[str, float] | None = None  # this generation's statistics, when computed together
 
     # --- what a subclass provides --------------------------------------------------------------
     def setup(self, problem: Problem, rng: np.random.Generator) -> None:
@@ -103,6 +127,13 @@ class Algorithm:
 
     def step(self) -> None:
         raise NotImplementedError
+
+    @staticmethod
+    def step_together(runs: Sequence[Algorithm]) -> None:
+        """One generation of each of ``runs`` (set up on one problem); a subclass that can share
+        the work of its runs' generations overrides it (the GA)."""
+        for a in runs:
+            a.step()
 
     def current(self) -> tuple[Array, float]:
         """The genome and cost a generation's row reports (default: the best ever seen)."""
@@ -120,8 +151,9 @@ class Algorithm:
         return not self.stop_reason
 
     def elapsed(self) -> float:
-        """Wall time of the run so far, s (a resumed run's earlier part included)."""
-        return time.perf_counter() - self._t0
+        """Wall time of the run so far, s (a resumed run's earlier part included; evolved with
+        others, its share of their time)."""
+        return time.perf_counter() - self._t0 if self.clock is None else self.clock
 
     def offer(self, X: Array, costs: Array) -> None:
         """Keep the best finite genome of X (P, K) if it beats the best seen (first among equals)."""
@@ -133,8 +165,8 @@ class Algorithm:
     def row(self) -> dict:
         """This generation's row: gen, nevals, the population statistics, the reported cost."""
         _, cost = self.current()
-        return dict(gen=self.gen, nevals=self.nevals, **population_stats(self.costs) | {"best": cost},
-                    n_nonfinite=self.n_nonfinite)  # fmt: skip
+        stats, self._stats = self._stats or population_stats(self.costs), None
+        return dict(gen=self.gen, nevals=self.nevals, **stats | {"best": cost}, n_nonfinite=self.n_nonfinite)
 
     def emit(self, callbacks: Sequence[Callback], rows: list[dict]) -> None:
         row = self.row()
@@ -169,6 +201,99 @@ class Algorithm:
         for cb in callbacks:
             cb.on_end(self, result)
         return result
+
+    @classmethod
+    def run_together(
+        cls, algorithms: Sequence[Algorithm], problem: Problem, rngs: Sequence[np.random.Generator],
+        callbacks: Sequence[Sequence[Callback]], states: Sequence[dict | None], finished: Callable | None = None,
+    ) -> list[Result | Exception]:  # fmt: skip
+        """:meth:`run` for several runs of this class on one problem, evolved in lockstep: a
+        generation of all the runs still going at once (:meth:`step_together`), then each run's
+        row to its callbacks (after :meth:`Callback.together`). Each run has its own generator,
+        callbacks and state (a checkpoint's, or None), and ends on its own stop criterion (the
+        others go on); ``finished(k, result)`` is called as run ``k`` ends. Returns each run's
+        result, or the exception it failed with (that run alone). At Ctrl-C every unfinished
+        run's callbacks see ``on_interrupt`` (their checkpoints) before KeyboardInterrupt goes on."""
+        n = len(algorithms)
+        out: list[Any] = [None] * n
+        rows: list[list[dict]] = [[] for _ in range(n)]
+        live: list[int] = []
+        fresh: list[int] = []
+        for k, a in enumerate(algorithms):
+            t0 = time.perf_counter()
+            try:
+                a.clock = 0.0
+                a.setup(problem, rngs[k])
+                if states[k] is not None:
+                    a.restore(states[k])
+                for cb in callbacks[k]:
+                    cb.on_start(a)
+                if states[k] is None:
+                    a.initialize()
+                    fresh.append(k)
+                live.append(k)
+            except Exception as exc:
+                out[k] = exc
+            a.clock = (a.clock or 0.0) + time.perf_counter() - t0
+        try:
+            cls._emit_together(algorithms, callbacks, rows, fresh, out, 0.0)
+            live = [k for k in live if out[k] is None]
+            while live:
+                t0 = time.perf_counter()
+                going = [k for k in live if algorithms[k].has_next()]
+                if going:
+                    try:
+                        cls.step_together([algorithms[k] for k in going])
+                    except Exception as exc:  # a shared step failed: every run in it
+                        for k in going:
+                            out[k] = exc
+                        going = []
+                cls._emit_together(algorithms, callbacks, rows, going, out, time.perf_counter() - t0)
+                for k in live:
+                    if out[k] is None and not algorithms[k].has_next():
+                        try:
+                            result = algorithms[k].result()
+                            result.rows = rows[k]
+                            for cb in callbacks[k]:
+                                cb.on_end(algorithms[k], result)
+                            out[k] = result
+                            if finished is not None:
+                                finished(k, result)
+                        except Exception as exc:
+                            out[k] = exc
+                live = [k for k in live if out[k] is None]
+        except KeyboardInterrupt:
+            for k in live:
+                if out[k] is None:
+                    for cb in callbacks[k]:
+                        cb.on_interrupt(algorithms[k])
+            raise
+        return out
+
+    @staticmethod
+    def _emit_together(algorithms, callbacks, rows, ks: list[int], out: list, spent: float) -> None:
+        """The rows of runs ``ks`` to their callbacks: statistics at once, each callback class's
+        shared work (:meth:`Callback.together`), then each run's callbacks; ``spent``: the
+        generation's time so far, shared among the runs. A run whose callback fails ends with
+        the error (in ``out``)."""
+        if not ks:
+            return
+        t0 = time.perf_counter()
+        for k, stats in zip(ks, stats_together([algorithms[k].costs for k in ks])):
+            algorithms[k]._stats = stats
+        by_class: dict[type, list] = {}
+        for k in ks:
+            for cb in callbacks[k]:
+                by_class.setdefault(type(cb), []).append((cb, algorithms[k]))
+        for kind, pairs in by_class.items():
+            kind.together(pairs)
+        share = (spent + time.perf_counter() - t0) / len(ks)
+        for k in ks:
+            algorithms[k].clock += share
+            try:
+                algorithms[k].emit(callbacks[k], rows[k])
+            except Exception as exc:
+                out[k] = exc
 
     def state(self) -> dict:
         raise NotImplementedError(f"{type(self).__name__} keeps no checkpoints")

@@ -9,7 +9,12 @@ DEAP's ``eaMuPlusLambda`` (:meth:`GA.step`); survival strategies are the small f
 
 from __future__ import annotations
 
+import functools
+import itertools
 import random
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,6 +22,7 @@ from numpy.typing import NDArray
 from zrp_ga import operators
 from zrp_ga.algorithms import Algorithm, Array, Result
 from zrp_ga.config import ConfigError, PopulationConf, RefineConf, Repair, SelectionConf, Strategy, VariationConf, section
+from zrp_ga.operators.base import Streams
 from zrp_ga.operators.repair import repair
 from zrp_ga.problems.protocol import GeneBlocks, LeastSquares, Problem, Repairing, Sampling
 
@@ -69,6 +75,7 @@ class GA(Algorithm):
         self.refine_conf: RefineConf = section(RefineConf, refine, "refine")
         self.strategy, self.repair = Strategy(strategy), Repair(repair)
         self.elite, self.target_cost, self.stagnation = int(elite), target_cost, stagnation
+        self._best: int | None = None  # the index of the current population's best, once known
         mu, lam = self.pop_conf.mu, self.pop_conf.lambda_
         if self.strategy is not Strategy.mu_plus_lambda and lam < mu:
             raise ConfigError(f"algorithm.strategy: {self.strategy.value} needs population.lambda_ >= mu, got {lam} < {mu}")
@@ -91,20 +98,31 @@ class GA(Algorithm):
         tb = self.toolbox
         blocks = problem.gene_blocks if isinstance(problem, GeneBlocks) else [(0, problem.lower.size)]
         context = dict(low=problem.lower, up=problem.upper, blocks=blocks, problem=problem)
-        tb.register("select", operators.build(self.selection.op, "selection.op", "selection", rng))
+        self.ops: dict[str, tuple] = {}  # alias -> (function, parameters, key), for runs evolved together
+        self._register("select", operators.build(self.selection.op, "selection.op", "selection", rng))
         families = [("mate", "crossover")] + list(UNARY)
         for alias, key in families:
             v = self.variation[key]
             op = operators.build(v.op, f"{key}.op", key, rng, **context) if v.prob > 0 else None
             if op is not None:
-                tb.register(alias, op)
+                self._register(alias, op)
         if self.refine_conf.share > 0 and self.refine_conf.op is not None:
-            tb.register("refine", operators.build(self.refine_conf.op, "refine.op", "refine", rng, **context))
+            self._register("refine", operators.build(self.refine_conf.op, "refine.op", "refine", rng, **context))
         if isinstance(problem, Repairing):
             tb.register("repair", problem.repair, rng=rng)
         else:
             tb.register("repair", repair, low=problem.lower, up=problem.upper, method=self.repair)
         self.probs = np.array([self.variation[key].prob if hasattr(tb, alias) else 0.0 for alias, key in UNARY])
+
+    def _register(self, alias: str, op: Callable) -> None:
+        """Register ``op`` in the toolbox; remember its function and parameters (those of a
+        :func:`zrp_ga.operators.build` partial) so that runs evolved together with the same
+        operator can share one call (:func:`step_together`)."""
+        self.toolbox.register(alias, op)
+        fn = getattr(op, "func", None)
+        if isinstance(op, functools.partial) and getattr(fn, "streams", False):
+            params = {k: v for k, v in op.keywords.items() if k != "rng"}
+            self.ops[alias] = (fn, params, (alias, fn, tuple((k, _same(v)) for k, v in sorted(params.items()))))
 
     def initialize(self) -> None:
         """mu genomes uniform in the gene ranges (or the problem's ``sample(rng, mu)``), evaluated: generation 0."""
@@ -114,6 +132,7 @@ class GA(Algorithm):
                               "(experiment=pose_selection does)")
         self.pop = p.sample(self.rng, mu) if isinstance(p, Sampling) else self.rng.uniform(p.lower, p.upper, size=(mu, p.lower.size))
         self.costs = self.toolbox.evaluate(self.pop)
+        self._best = None
         self.initial = (self.pop.copy(), self.costs.copy())
         self.nevals, self.n_nonfinite = self.pop_conf.mu, int(np.sum(~np.isfinite(self.costs)))
         self.offer(self.pop, self.costs)
@@ -121,57 +140,20 @@ class GA(Algorithm):
         self.stop_reason = self._stop_reason()
 
     def step(self) -> None:
-        """One generation, the paper's steps 5-9 in the shape of DEAP's ``eaMuPlusLambda``."""
-        tb, lam = self.toolbox, self._offspring_count()
-        parents = tb.select(self.costs, lam)
-        offspring, off_costs = self.pop[parents], self.costs[parents]  # fancy indexing copies: the clones
-        changed = self._vary(offspring)
-        refined = self._refine(offspring)
-        new = np.flatnonzero(changed | refined)  # unchanged clones keep their parent's cost
-        values = tb.evaluate(offspring[new]) if new.size else np.empty(0)
-        off_costs[new] = values
-        self.nevals += new.size + int(refined.sum())  # a pseudo-inverse step evaluates its residual once
-        self.n_nonfinite = values.size - int(np.isfinite(values).sum())
-        survive = SURVIVAL[self.strategy if lam >= self.pop_conf.mu else Strategy.mu_plus_lambda]
-        self.pop, self.costs = survive(self.pop, self.costs, offspring, off_costs, self.pop_conf.mu, self.elite)
-        self.gen += 1
-        self.offer(self.pop, self.costs)
-        self._update_stagnation()
-        self.stop_reason = self._stop_reason()
+        """One generation, the paper's steps 5-9 in the shape of DEAP's ``eaMuPlusLambda``
+        (:func:`step_together` with this run alone)."""
+        step_together([self])
 
-    def _vary(self, off: Array) -> NDArray[np.bool_]:
-        """Crossover of the first pairs with ``crossover.prob`` (parents come in random order),
-        then mutation, inversion and rotation of each child with their probabilities; genes
-        repaired into their ranges. In place; returns which children changed."""
-        tb, rng, lam = self.toolbox, self.rng, len(off)
-        changed = np.zeros(lam, dtype=bool)
-        if hasattr(tb, "mate"):
-            n_cx = 2 * rng.binomial(lam // 2, self.variation["crossover"].prob)
-            if n_cx:
-                tb.mate(off[0:n_cx:2], off[1:n_cx:2])  # strided views: the pairs change in place
-                changed[:n_cx] = True
-        chosen = rng.random((3, lam)) < self.probs[:, None]  # who mutates, inverts, rotates
-        for (alias, _), mask in zip(UNARY, chosen):
-            if hasattr(tb, alias) and mask.any():
-                block = off[mask]
-                getattr(tb, alias)(block)
-                off[mask] = block
-                changed |= mask
-        tb.repair(off)
-        return changed
+    @staticmethod
+    def step_together(runs: Sequence[GA]) -> None:
+        step_together(runs)
 
-    def _refine(self, off: Array) -> NDArray[np.bool_]:
-        """A share of the children takes the pseudo-inverse step (the paper's step 8); repaired."""
-        refined = np.zeros(len(off), dtype=bool)
-        n = round(self.refine_conf.share * len(off)) if hasattr(self.toolbox, "refine") else 0
-        if n:
-            chosen = self.rng.choice(len(off), size=n, replace=False)
-            block = off[chosen]
-            self.toolbox.refine(block)
-            off[chosen] = block
-            self.toolbox.repair(off)
-            refined[chosen] = True
-        return refined
+    def draws_from_random(self) -> bool:
+        """Whether an operator of this run draws from Python's ``random`` (DEAP's own, through
+        the adapter): such a run is not evolved together with others, which would share that state."""
+        ops = [("selection.op", self.selection.op), ("refine.op", self.refine_conf.op)]
+        ops += [(f"{key}.op", v.op) for key, v in self.variation.items()]
+        return any(node is not None and not getattr(operators.target(node, key)[0], "batched", False) for key, node in ops)
 
     def _offspring_count(self) -> int:
         c = self.pop_conf
@@ -199,7 +181,7 @@ class GA(Algorithm):
 
     def current(self) -> tuple[Array, float]:
         """The best genome of the current population (what a generation's row reports)."""
-        k = int(rank(self.costs)[0])
+        k = int(rank(self.costs)[0]) if self._best is None else self._best
         return self.pop[k], float(self.costs[k])
 
     def fraction_done(self) -> float | None:
@@ -216,17 +198,225 @@ class GA(Algorithm):
             pop=self.pop, costs=self.costs, initial_x=self.initial[0], initial_costs=self.initial[1],
             best_x=self.best_x, best_cost=self.best_cost, gen=self.gen, nevals=self.nevals,
             n_nonfinite=self.n_nonfinite, best_seen=self.best_seen, since_improved=self.since_improved,
-            rng=self.rng.bit_generator.state, random=random.getstate(), wall_s=self.elapsed(),
+            rng=self.rng.bit_generator.state, random=random.getstate() if self.random_state is None else self.random_state,
+            wall_s=self.elapsed(),
         )  # fmt: skip
 
     def restore(self, state: dict) -> None:
         self.pop, self.costs = np.asarray(state["pop"], dtype=float), np.asarray(state["costs"], dtype=float)
+        self._best = None
         self.initial = (np.asarray(state["initial_x"]), np.asarray(state["initial_costs"]))
         self.best_x, self.best_cost = np.asarray(state["best_x"], dtype=float), float(state["best_cost"])
         for key in ("gen", "nevals", "n_nonfinite", "since_improved"):
             setattr(self, key, int(state[key]))
         self.best_seen = float(state["best_seen"])
         self.rng.bit_generator.state = state["rng"]
-        random.setstate(state["random"])
+        if self.random_state is None:
+            random.setstate(state["random"])
+        else:
+            self.random_state = state["random"]
         self._t0 -= float(state["wall_s"])
+        if self.clock is not None:
+            self.clock += float(state["wall_s"])
         self.stop_reason = self._stop_reason()
+
+
+# --- generations of several runs at once ---------------------------------------------------------
+def _same(v: Any) -> Any:
+    """A parameter's value as a key that is equal for equal values (arrays by their bytes,
+    other objects by identity: the problem instance)."""
+    if isinstance(v, np.ndarray):
+        return (v.dtype.str, v.shape, v.tobytes())
+    if isinstance(v, (list, tuple)):
+        return repr(v)
+    return v if isinstance(v, (int, float, str, bool, type(None))) else id(v)
+
+
+def _groups(runs: Sequence[GA], alias: str, which: Sequence[int]) -> list[list[int]]:
+    """The runs of ``which`` (indices into ``runs``) grouped by their ``alias`` operator: runs
+    with the same function and parameters share a group when it takes random streams; any other
+    run is a group of its own."""
+    groups: dict[Any, list[int]] = {}
+    for i in which:
+        op = runs[i].ops.get(alias)
+        groups.setdefault(op[2] if op else ("alone", i), []).append(i)
+    return list(groups.values())
+
+
+def _apply(runs: Sequence[GA], alias: str, rows: dict[int, tuple[NDArray[np.intp], ...]], off: Array) -> None:
+    """Apply each run's ``alias`` operator to its offspring ``off[rows[i][j]]`` (one index
+    array, or two for crossover's pairs), in place: one call per group of runs
+    (:func:`_groups`) on the rows of all its runs, each run's random numbers from its own
+    generator (:class:`zrp_ga.operators.base.Streams`)."""
+    for group in _groups(runs, alias, list(rows)):
+        index = [np.concatenate([rows[i][j] for i in group]) for j in range(len(rows[group[0]]))]
+        genes = [off[ix] for ix in index]  # copies; the operators change them in place
+        if len(group) == 1:
+            getattr(runs[group[0]].toolbox, alias)(*genes)
+        else:
+            fn, params, _ = runs[group[0]].ops[alias]
+            fn(*genes, rng=Streams([runs[i].rng for i in group], [len(rows[i][0]) for i in group]), **params)
+        for ix, g in zip(index, genes):
+            off[ix] = g
+
+
+def step_together(runs: Sequence[GA]) -> None:
+    """One generation of each GA of ``runs`` (set up on the same problem, with the same
+    population size), exactly as each makes it alone: every run draws its random numbers from
+    its own generator, in the order it draws them alone, while the offspring of all runs are
+    one array, each operator is applied once to the rows of all the runs that use it
+    (:func:`_apply`), every changed offspring is evaluated in one call of the problem's cost,
+    and survival and statistics are computed for all runs at once.
+
+    A generation, the paper's steps 5-9 in the shape of DEAP's ``eaMuPlusLambda``: ``lambda``
+    parents selected; the first pairs crossed with ``crossover.prob`` (parents come in random
+    order), then each child mutated, inverted and rotated with their probabilities, genes
+    repaired into their ranges; a share of the children takes the pseudo-inverse step; the
+    changed children evaluated (unchanged clones keep their parent's cost); survival."""
+    lams = [ga._offspring_count() for ga in runs]
+    starts = np.concatenate([[0], np.cumsum(lams)]).astype(np.intp)
+    spans = [slice(int(a), int(b)) for a, b in itertools.pairwise(starts)]
+    parents = _select(runs, lams)
+    pops = [ga.pop for ga in runs]
+    bases = np.concatenate([[0], np.cumsum([len(p) for p in pops])[:-1]])
+    flat = np.concatenate([p + b for p, b in zip(parents, bases)]) if len(runs) > 1 else parents[0]
+    off = (np.concatenate(pops) if len(runs) > 1 else pops[0])[flat]  # fancy indexing copies: the clones
+    off_costs = (np.concatenate([ga.costs for ga in runs]) if len(runs) > 1 else runs[0].costs)[flat]
+    changed = np.zeros(len(off), dtype=bool)
+    pairs = {}  # crossover of each run's first pairs: how many, drawn by the run
+    for i, ga in enumerate(runs):
+        if hasattr(ga.toolbox, "mate"):
+            n_cx = 2 * ga.rng.binomial(lams[i] // 2, ga.variation["crossover"].prob)
+            if n_cx:
+                first = starts[i] + np.arange(0, n_cx, 2)
+                pairs[i] = (first, first + 1)
+                changed[starts[i] : starts[i] + n_cx] = True
+    _apply(runs, "mate", pairs, off)
+    chosen = [ga.rng.random((3, lam)) < ga.probs[:, None] for ga, lam in zip(runs, lams)]  # who mutates, inverts, rotates
+    for j, (alias, _) in enumerate(UNARY):
+        picked = {i: (starts[i] + np.flatnonzero(c[j]),) for i, c in enumerate(chosen) if hasattr(runs[i].toolbox, alias) and c[j].any()}
+        _apply(runs, alias, picked, off)
+        for i in picked:
+            changed[spans[i]] |= chosen[i][j]
+    _repair(runs, off, spans, range(len(runs)))
+    refined = _refine(runs, off, spans)
+    new = np.flatnonzero(changed | refined)  # unchanged clones keep their parent's cost
+    values = _evaluate(runs, off[new], np.searchsorted(new, starts))
+    off_costs[new] = values
+    _survive(runs, off, off_costs, spans, new, values, refined, starts)
+
+
+def _repair(runs: Sequence[GA], off: Array, spans: list[slice], which: Sequence[int]) -> None:
+    """Each run's repair of its offspring (the gene ranges, or its problem's own), in place."""
+    for i in which:
+        runs[i].toolbox.repair(off[spans[i]])  # a view: repaired in place
+
+
+def _select(runs: Sequence[GA], lams: list[int]) -> list[NDArray[np.intp]]:
+    """Each run's ``lambda`` parents, indices into its population."""
+    out: list[Any] = [None] * len(runs)
+    for group in _groups(runs, "select", range(len(runs))):
+        if len(group) == 1:
+            out[group[0]] = runs[group[0]].toolbox.select(runs[group[0]].costs, lams[group[0]])
+            continue
+        fn, params, _ = runs[group[0]].ops["select"]
+        counts = [lams[i] for i in group]
+        picked = fn(np.stack([runs[i].costs for i in group]), sum(counts), rng=Streams([runs[i].rng for i in group], counts), **params)
+        for i, part in zip(group, np.split(picked, np.cumsum(counts)[:-1])):
+            out[i] = part
+    return out
+
+
+def _refine(runs: Sequence[GA], off: Array, spans: list[slice]) -> NDArray[np.bool_]:
+    """A share of each run's children takes the pseudo-inverse step (the paper's step 8);
+    repaired. Returns which children took it."""
+    refined = np.zeros(len(off), dtype=bool)
+    picked = {}
+    for i, ga in enumerate(runs):
+        lam = spans[i].stop - spans[i].start
+        n = round(ga.refine_conf.share * lam) if hasattr(ga.toolbox, "refine") else 0
+        if n:
+            picked[i] = (spans[i].start + ga.rng.choice(lam, size=n, replace=False),)
+            refined[picked[i][0]] = True
+    if picked:
+        t0 = time.perf_counter()
+        _apply(runs, "refine", picked, off)
+        if len(runs) > 1:  # alone, the toolbox's refine is timed by the run's callback
+            for i in picked:
+                runs[i].shared_s["refine_s"] += (time.perf_counter() - t0) / len(picked)
+        _repair(runs, off, spans, list(picked))
+    return refined
+
+
+def _evaluate(runs: Sequence[GA], X: Array, bounds: NDArray[np.intp]) -> Array:
+    """The costs of the changed offspring ``X`` of all runs (run ``i``'s rows from
+    ``bounds[i]`` to ``bounds[i + 1]``) in one call of the problem's cost (a run alone: its
+    toolbox's ``evaluate``, which a callback may time)."""
+    if len(runs) == 1:
+        return runs[0].toolbox.evaluate(X) if len(X) else np.empty(0)
+    if not len(X):
+        return np.empty(0)
+    t0 = time.perf_counter()
+    values = runs[0].problem.costs(X)
+    for a, b in itertools.pairwise(bounds):  # a run's one changed child: its cost as for one genome alone
+        if b - a == 1:  # (np.einsum adds in another order for one genome than for many)
+            values[a:b] = runs[0].problem.costs(X[a:b])
+    spent = (time.perf_counter() - t0) / len(X)
+    for ga, a, b in zip(runs, bounds[:-1], bounds[1:]):
+        ga.shared_s["eval_s"] += spent * (b - a)
+    return values
+
+
+def _survive(runs: Sequence[GA], off: Array, off_costs: Array, spans: list[slice], new: NDArray[np.intp],
+             values: Array, refined: NDArray[np.bool_], starts: NDArray[np.intp]) -> None:  # fmt: skip
+    """The rest of the generation for every run: count its evaluations, keep its survivors
+    (runs with the same strategy and shapes at once), remember its best, decide whether it stops."""
+    bounds = np.searchsorted(new, starts)
+    groups: dict[tuple, list[int]] = {}
+    for i, ga in enumerate(runs):
+        lam, mu = spans[i].stop - spans[i].start, ga.pop_conf.mu
+        strategy = ga.strategy if lam >= mu else Strategy.mu_plus_lambda
+        groups.setdefault((strategy, ga.elite, lam, len(ga.pop), mu), []).append(i)
+    for (strategy, elite, lam, _, mu), group in groups.items():
+        Q = off[np.concatenate([np.arange(spans[i].start, spans[i].stop) for i in group])].reshape(len(group), lam, -1)
+        Qc = np.concatenate([off_costs[spans[i]] for i in group]).reshape(len(group), lam)
+        P, Pc = np.stack([runs[i].pop for i in group]), np.stack([runs[i].costs for i in group])
+        genes, pool, keep = SURVIVE_TOGETHER[strategy](P, Pc, Q, Qc, mu, elite)
+        pop = np.take_along_axis(genes, keep[:, :, None], axis=1)
+        costs = np.take_along_axis(pool, keep, axis=1)
+        finite = np.where(np.isfinite(costs), costs, np.inf)
+        best = np.argmin(finite, axis=1)  # the first best: the current genome, and the one offered
+        for g, i in enumerate(group):
+            ga, vals = runs[i], values[bounds[i] : bounds[i + 1]]
+            ga.nevals += len(vals) + int(refined[spans[i]].sum())  # a pseudo-inverse step evaluates its residual once
+            ga.n_nonfinite = len(vals) - int(np.isfinite(vals).sum())
+            ga.pop, ga.costs, ga.gen, ga._best = pop[g], costs[g], ga.gen + 1, int(best[g])
+            if finite[g, best[g]] < ga.best_cost:
+                ga.best_x, ga.best_cost = np.array(pop[g, best[g]], dtype=float), float(costs[g, best[g]])
+            ga._update_stagnation()
+            ga.stop_reason = ga._stop_reason()
+
+
+def _ranked(costs: Array) -> NDArray[np.intp]:
+    """:func:`rank` of each row of ``costs`` (runs, n)."""
+    return np.argsort(np.where(np.isfinite(costs), costs, np.inf), axis=1, kind="stable")
+
+
+def _plus_together(P, Pc, Q, Qc, mu, elite):
+    genes, pool = np.concatenate([P, Q], axis=1), np.concatenate([Pc, Qc], axis=1)
+    return genes, pool, _ranked(pool)[:, :mu]
+
+
+def _comma_together(P, Pc, Q, Qc, mu, elite):
+    return Q, Qc, _ranked(Qc)[:, :mu]
+
+
+def _generational_together(P, Pc, Q, Qc, mu, elite):
+    genes, pool = np.concatenate([P, Q], axis=1), np.concatenate([Pc, Qc], axis=1)
+    return genes, pool, np.concatenate([_ranked(Pc)[:, :elite], Pc.shape[1] + _ranked(Qc)[:, : mu - elite]], axis=1)
+
+
+# The survival strategies for many runs at once: (genes, costs, indices of the survivors), the
+# same survivors as SURVIVAL's for each run.
+SURVIVE_TOGETHER = {Strategy.mu_plus_lambda: _plus_together, Strategy.mu_comma_lambda: _comma_together,
+                    Strategy.generational: _generational_together}  # fmt: skip

@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.operators.base import Array, batched, rows, segments, swap_segments
+from zrp_ga.operators.base import Array, batched, draw, rows, segments, swap_segments
+
+
+def _uniform(rng, shape: tuple[int, int]) -> Array:
+    """U(0, 1) numbers of a batch's shape (N, K), each run's rows from its own stream."""
+    return draw(rng, shape[0], lambda g, n: g.random((n, shape[1])))
 
 
 def _swap(A: Array, B: Array, mask: np.ndarray) -> None:
@@ -13,17 +18,17 @@ def _swap(A: Array, B: Array, mask: np.ndarray) -> None:
     B[:] = np.where(mask, a, B)
 
 
-@batched
+@batched(streams=True)
 def one_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array, Array]:
     """Swap the tails after a random cut point in 1..K-1."""
     A, B = rows(ind1), rows(ind2)
     N, K = A.shape
-    cut = rng.integers(1, K, size=N)
+    cut = draw(rng, N, lambda g, n: g.integers(1, K, size=n))
     swap_segments(A, B, cut, np.full(N, K))
     return ind1, ind2
 
 
-@batched
+@batched(streams=True)
 def two_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array, Array]:
     """Swap the genes between two distinct random cut points in 1..K-1."""
     A, B = rows(ind1), rows(ind2)
@@ -33,27 +38,27 @@ def two_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array
     return ind1, ind2
 
 
-@batched
+@batched(streams=True)
 def uniform(ind1: Array, ind2: Array, rng: np.random.Generator, indpb: float = 0.5) -> tuple[Array, Array]:
     """Swap each gene with probability ``indpb``."""
     A, B = rows(ind1), rows(ind2)
-    _swap(A, B, rng.random(A.shape) < indpb)
+    _swap(A, B, _uniform(rng, A.shape) < indpb)
     return ind1, ind2
 
 
-@batched
+@batched(streams=True)
 def blend(ind1: Array, ind2: Array, rng: np.random.Generator, alpha: float = 0.5) -> tuple[Array, Array]:
     """BLX-alpha: ``gamma = (1 + 2 alpha) U - alpha``, children ``(1-gamma) x1 + gamma x2`` and
     ``gamma x1 + (1-gamma) x2`` (as DEAP's ``cxBlend``)."""
     A, B = rows(ind1), rows(ind2)
-    g = (1.0 + 2.0 * alpha) * rng.random(A.shape) - alpha
+    g = (1.0 + 2.0 * alpha) * _uniform(rng, A.shape) - alpha
     a = A.copy()
     A[:] = (1.0 - g) * a + g * B
     B[:] = g * a + (1.0 - g) * B
     return ind1, ind2
 
 
-@batched
+@batched(streams=True)
 def sbx(
     ind1: Array, ind2: Array, rng: np.random.Generator, low: Array, up: Array, eta: float = 20.0, indpb: float = 0.5
 ) -> tuple[Array, Array]:
@@ -61,9 +66,9 @@ def sbx(
     ``cxSimulatedBinaryBounded``), each gene with probability ``indpb``, vectorised."""
     A, B = rows(ind1), rows(ind2)
     x1, x2 = np.minimum(A, B), np.maximum(A, B)
-    active = (rng.random(A.shape) < indpb) & (x2 - x1 > 1e-14)
+    active = (_uniform(rng, A.shape) < indpb) & (x2 - x1 > 1e-14)
     diff = np.where(active, x2 - x1, 1.0)
-    u = rng.random(A.shape)
+    u = _uniform(rng, A.shape)
     power = 1.0 / (eta + 1.0)
 
     def beta_q(beta: Array) -> Array:
@@ -74,7 +79,7 @@ def sbx(
         c1 = 0.5 * (x1 + x2 - beta_q(1.0 + 2.0 * (x1 - low) / diff) * diff)
         c2 = 0.5 * (x1 + x2 + beta_q(1.0 + 2.0 * (up - x2) / diff) * diff)
     c1, c2 = np.clip(c1, low, up), np.clip(c2, low, up)
-    flip = rng.random(A.shape) <= 0.5
+    flip = _uniform(rng, A.shape) <= 0.5
     A[:] = np.where(active, np.where(flip, c2, c1), A)
     B[:] = np.where(active, np.where(flip, c1, c2), B)
     return ind1, ind2

@@ -22,13 +22,13 @@ def _permute(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]]
     return (ind,)
 
 
-@batched
+@batched(streams=True)
 def block(ind: Array, rng: np.random.Generator, blocks: list[tuple[int, int]]) -> tuple[Array]:
     """:func:`segment` inside one parameter block (``blocks``: [start, stop) of each)."""
     return _permute(ind, rng, blocks)
 
 
-@batched
+@batched(streams=True)
 def segment(ind: Array, rng: np.random.Generator) -> tuple[Array]:
     """A random segment anywhere in the genome."""
     return _permute(ind, rng, None)

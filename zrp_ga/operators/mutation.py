@@ -4,31 +4,38 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.operators.base import Array, batched, rows
+from zrp_ga.operators.base import Array, batched, draw, parts, rows
 
 
-@batched
+def _uniform(rng, shape: tuple[int, int]) -> Array:
+    """U(0, 1) numbers of a batch's shape (N, K), each run's rows from its own stream."""
+    return draw(rng, shape[0], lambda g, n: g.random((n, shape[1])))
+
+
+@batched(streams=True)
 def gaussian(
     ind: Array, rng: np.random.Generator, low: Array, up: Array, sigma: float = 0.1, indpb: float = 0.2
 ) -> tuple[Array]:
     """Add ``N(0, (sigma (up - low))^2)`` to each gene with probability ``indpb``."""
     A = rows(ind)
-    r, c = np.nonzero(rng.random(A.shape) < indpb)
-    A[r, c] += rng.standard_normal(r.size) * (sigma * (up - low))[c]
+    mask = _uniform(rng, A.shape) < indpb
+    r, c = np.nonzero(mask)
+    noise = [g.standard_normal(np.count_nonzero(mask[s])) for g, s in parts(rng, len(A))]
+    A[r, c] += (noise[0] if len(noise) == 1 else np.concatenate(noise)) * (sigma * (up - low))[c]
     return (ind,)
 
 
-@batched
+@batched(streams=True)
 def polynomial(
     ind: Array, rng: np.random.Generator, low: Array, up: Array, eta: float = 20.0, indpb: float = 0.2
 ) -> tuple[Array]:
     """Deb's bounded polynomial mutation (the algorithm of DEAP's ``mutPolynomialBounded``)."""
     A = rows(ind)
-    mask = rng.random(A.shape) < indpb
+    mask = _uniform(rng, A.shape) < indpb
     x = np.clip(A, low, up)
     width = up - low
     d1, d2 = (x - low) / width, (up - x) / width
-    u = rng.random(A.shape)
+    u = _uniform(rng, A.shape)
     power = 1.0 / (eta + 1.0)
     lower_side = u < 0.5
     with np.errstate(all="ignore"):
@@ -39,10 +46,10 @@ def polynomial(
     return (ind,)
 
 
-@batched
+@batched(streams=True)
 def uniform_reset(ind: Array, rng: np.random.Generator, low: Array, up: Array, indpb: float = 0.1) -> tuple[Array]:
     """Replace each gene with probability ``indpb`` by a uniform draw in [low, up]."""
     A = rows(ind)
-    mask = rng.random(A.shape) < indpb
-    A[:] = np.where(mask, rng.uniform(low, up, size=A.shape), A)
+    mask = _uniform(rng, A.shape) < indpb
+    A[:] = np.where(mask, draw(rng, len(A), lambda g, n: g.uniform(low, up, size=(n, A.shape[1]))), A)
     return (ind,)

@@ -43,7 +43,7 @@ def step(problem: LeastSquares, x: Array, rcond: float) -> Array:
     return x + lsq_linear(R, rQ, bounds=bounds).x
 
 
-@batched
+@batched(streams=True)
 def pinv(X: Array, rng: np.random.Generator, problem: LeastSquares, rcond: float = 1e-9) -> tuple[Array]:
     """Every row of ``X`` (N, K) takes the pseudo-inverse step, in place (``rng`` unused: the
     step is deterministic)."""

@@ -113,7 +113,7 @@ def sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Ca
     try:
         value = _sweep_job(task_config(cfg), out, sweep, choices, cache)
     except KeyboardInterrupt:
-        directory.record(sweep, "interrupted", "KeyboardInterrupt: continue by running the sweep again")
+        directory.record(sweep, "interrupted", INTERRUPTED)
         raise
     except Exception as exc:
         directory.record(sweep, "failed", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
@@ -138,22 +138,194 @@ def batch_key(cfg: DictConfig) -> str | None:
 def sweep_batch(jobs: Sequence[Job], cache: Cache = CACHE,
                 around: Callable[[int], contextlib.AbstractContextManager] | None = None) -> list[float | Exception]:  # fmt: skip
     """Run jobs of a sweep (each ``(cfg, out, sweep, choices)`` as :func:`sweep_job` takes
-    them), those with the same :func:`batch_key` together; per job its objective or the
-    exception it failed with (recorded in the manifest as :func:`sweep_job` records it).
-    ``around(k)``: a context entered around everything done for job ``k`` alone (its log file,
-    Hydra's view of the job), by the launcher. KeyboardInterrupt is raised after every job
-    recorded its state."""
-    out: list[float | Exception] = []
+    them) and return per job its objective or the exception it failed with, each job recorded
+    in the manifest as :func:`sweep_job` records it. GA jobs with the same :func:`batch_key`
+    are evolved together (:meth:`zrp_ga.algorithms.Algorithm.run_together`): one evaluation of
+    all their offspring per generation, each run with its own random streams, so that every
+    run's files are those it writes alone; the others run one after another. ``around(k)``: a
+    context entered around everything done for job ``k`` alone (its log file, Hydra's view of
+    the job), by the launcher. KeyboardInterrupt is raised after every job recorded its state."""
+    out: list[Any] = [None] * len(jobs)
+    ready: dict[Any, list[tuple[int, Prepared, Sweep]]] = {}
+
+    def job(k: int) -> contextlib.AbstractContextManager:
+        return around(k) if around else contextlib.nullcontext()
+
     for k, (cfg, where, sweep, choices) in enumerate(jobs):
-        with around(k) if around else contextlib.nullcontext():
+        with job(k):
             try:
-                out.append(sweep_job(cfg, where, sweep, choices, cache))
+                got = _job(task_config(cfg), where, sweep, choices, cache)
+            except KeyboardInterrupt:
+                directory.record(sweep, "interrupted", INTERRUPTED)
+                raise
             except Exception as exc:
-                out.append(exc)
+                _failed(sweep, exc)
+                out[k] = exc
+                continue
+            if isinstance(got, float):
+                directory.record(sweep, "done")
+                out[k] = got
+            else:
+                key = None if got.algorithm.draws_from_random() else batch_key(got.cfg)
+                ready.setdefault((key, id(got.task)) if key else ("alone", k), []).append((k, got, sweep))
+    for group in ready.values():
+        if len(group) == 1:
+            k, p, sweep = group[0]
+            with job(k):
+                try:
+                    out[k] = objective(run_prepared(p, False, sweep, cache))
+                except KeyboardInterrupt:
+                    directory.record(sweep, "interrupted", INTERRUPTED)
+                    raise
+                except Exception as exc:
+                    _failed(sweep, exc)
+                    out[k] = exc
+                    continue
+                directory.record(sweep, "done")
+        else:
+            for (k, _, _), value in zip(group, _together(group, cache, job)):
+                out[k] = value if isinstance(value, Exception) else objective(value)
     return out
 
 
-def _sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Cache) -> float:
+INTERRUPTED = "KeyboardInterrupt: continue by running the sweep again"
+# Runs evolved together save their checkpoints every checkpoint_every generations, but no sooner
+# than this many seconds after the last (and at the end, and at Ctrl-C): a batch of short runs
+# then writes each run's checkpoint once, and a kill loses at most this much of a batch's work.
+BATCH_CHECKPOINT_S = 10.0
+
+
+def _failed(sweep: Sweep, exc: BaseException) -> None:
+    directory.record(sweep, "failed", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
+
+
+def run_together(prepared: Sequence[Prepared], cache: Cache = CACHE) -> list[tuple[Any, dict] | Exception]:
+    """Run prepared GA runs on one problem instance (the same ``task``) evolved together, each
+    writing into its ``out`` (None: nothing written) what it writes alone; per run what
+    :func:`execute` returns (the result and the summary), or the exception it failed with.
+    :func:`zrp_ga.calibrate` over many seeds runs so."""
+    if len({id(p.task) for p in prepared}) > 1:
+        raise ValueError("runs evolved together share one problem instance")
+    return _together([(k, p, None) for k, p in enumerate(prepared)], cache, lambda k: contextlib.nullcontext())
+
+
+def _together(group: list[tuple[int, Prepared, Sweep | None]], cache: Cache, job: Callable) -> list[Any]:
+    """Evolve the prepared runs of ``group`` (GA runs on one problem instance) together, each
+    in its own directory (if it has one) with everything :func:`run_prepared` and
+    :func:`execute` give a run alone: its lock, status, convergence log (written at every
+    checkpoint: the rows in memory between them), checkpoints, summary and files, manifest
+    line (for a sweep's job). Per run its result and summary, or the exception it failed with;
+    KeyboardInterrupt after every unfinished run saved its checkpoint and recorded it."""
+    from threadpoolctl import threadpool_limits
+
+    from zrp_ga import callbacks, summary
+
+    out: list[Any] = [None] * len(group)
+    live: list[int] = []
+    setups: list[tuple] = []
+    hashed: dict[str, dict] = {}  # instance key -> the hashes of its robot and data files
+    with contextlib.ExitStack() as stack:
+        for i, (k, p, _) in enumerate(group):
+            with job(k):
+                try:
+                    if p.out is not None:
+                        p.out.mkdir(parents=True, exist_ok=True)
+                        stack.enter_context(directory.locked(p.out))  # one run per directory at a time
+                        directory.remove_temporary(p.out)
+                        directory.write_status(p.out, "running")
+                    setups.append(_callbacks(p, callbacks, hashed))
+                    live.append(i)
+                except Exception as exc:
+                    out[i] = exc
+
+        def finished(j: int, result: Any) -> None:  # run live[j] ended: its summary and files, as execute writes them
+            i = live[j]
+            k, p, sweep = group[i]
+            where = None if sweep is None else sweep.dir
+            with job(k):
+                written, x = summary.build(p.task, result, p.cfg, setups[j][2], diagnostics[j], p.algorithm.elapsed(), p.choices)
+                written["objective"] = summary.objective(p.cfg, p.task, written, p.instance, cache, where)
+                if p.out is not None:
+                    summary.write(p.out, p.task, result, written, x)
+                for w in written["warnings"]:
+                    warn(w, log)
+                if p.out is not None:
+                    directory.write_status(p.out, "done")
+                if sweep is not None:
+                    directory.record(sweep, "done")
+                out[i] = (result, written)
+
+        try:
+            with threadpool_limits(limits=1, user_api="blas"):  # see execute
+                diagnostics = [summary.diagnostics(group[i][1].task, group[i][1].state is None, group[i][1].instance, cache,
+                                                   None if group[i][2] is None else group[i][2].dir) for i in live]  # fmt: skip
+                algorithms = [group[i][1].algorithm for i in live]
+                for a, setup in zip(algorithms, setups):
+                    a.random_state = setup[3]
+                ended = type(algorithms[0]).run_together(
+                    algorithms, group[live[0]][1].task.problem, [s[0] for s in setups], [s[1] for s in setups],
+                    [group[i][1].state for i in live], finished,
+                ) if live else []  # fmt: skip
+            for j, i in enumerate(live):
+                if isinstance(ended[j], Exception):
+                    out[i] = ended[j]
+        except BaseException as exc:  # Ctrl-C, or a failure shared by the runs: every unfinished run says so
+            interrupted = isinstance(exc, KeyboardInterrupt)
+            for i in live:
+                if out[i] is None:
+                    k, p, sweep = group[i]
+                    if interrupted:
+                        if p.out is not None:
+                            directory.remove_temporary(p.out)
+                            directory.write_status(p.out, "interrupted", repr(exc))
+                        if sweep is not None:
+                            directory.record(sweep, "interrupted", INTERRUPTED)
+                    else:
+                        out[i] = exc if isinstance(exc, Exception) else RuntimeError(repr(exc))
+            if interrupted or not isinstance(exc, Exception):
+                raise
+        for i, value in enumerate(out):
+            if isinstance(value, Exception):
+                k, p, sweep = group[i]
+                with job(k):
+                    log.error("%s: %s: %s", p.out or f"run {k}", type(value).__name__, value)
+                    if p.out is not None:
+                        directory.remove_temporary(p.out)
+                        with contextlib.suppress(OSError):  # a full disk: the error itself tells
+                            directory.write_status(p.out, "failed", repr(value))
+                    if sweep is not None:
+                        _failed(sweep, value)
+    return out
+
+
+def _callbacks(p: Prepared, callbacks: Any, hashed: dict[str, dict]) -> tuple:
+    """A run's generator, callbacks (those :func:`execute` gives it, the convergence log written
+    at each checkpoint), resolved config and seeded state of ``random``."""
+    import numpy as np
+
+    cfg, task = p.cfg, p.task
+    seed = int(cfg.seed)
+    before = random.getstate()
+    random.seed(seed)  # the state a run alone starts from (zrp_ga's own operators never draw from it)
+    seeded = random.getstate()
+    random.setstate(before)
+    resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    cbs = [callbacks.Timing(), callbacks.Validation(task.judge)]
+    if p.out is not None:
+        every = int(cfg.checkpoint_every) if p.algorithm.checkpointable else 0
+        rows = callbacks.ConvergenceLog(p.out / directory.CONVERGENCE, None if p.state is None else int(p.state["gen"]), buffered=True)
+        cbs.append(rows)
+        if every:
+            if p.instance not in hashed:  # the runs of a batch share their instance: hashed once
+                hashed[p.instance] = inputs(cfg, task)
+            cbs.append(callbacks.Checkpoint(p.out / directory.CHECKPOINT, every, resolved, p.choices, hashed[p.instance],
+                                            BATCH_CHECKPOINT_S, rows.flush))  # fmt: skip
+    return np.random.default_rng([seed, 0]), cbs, resolved, seeded
+
+
+def _job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Cache) -> float | Prepared:
+    """A sweep job's run prepared, or its objective when its directory holds it finished (see
+    :func:`sweep_job`)."""
     from zrp_ga import checkpoint
 
     damaged = directory.damage(out) if directory.status(out) == "done" else None
@@ -183,7 +355,12 @@ def _sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: C
     p = build(cfg, out, state, choices, cache)
     if state is not None:
         check_inputs(p, recorded, str(out))
-    return objective(run_prepared(p, False, sweep, cache))
+    return p
+
+
+def _sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Cache) -> float:
+    got = _job(cfg, out, sweep, choices, cache)
+    return got if isinstance(got, float) else objective(run_prepared(got, False, sweep, cache))
 
 
 def _same_run(cfg: DictConfig, stored: dict | None, out: Path) -> None:
