@@ -127,7 +127,8 @@ def run_differences(a: Path, b: Path, first: int = 3) -> list[str]:
     else:
         same = (x.values == y.values) | (pd.isna(x).values & pd.isna(y).values)
         for i, j in zip(*np.nonzero(~same)):
-            out.append(f"convergence.csv row {i} ({x.columns[0]} {x.iat[i, 0]}), {x.columns[j]}: {x.iat[i, j]!r} against {y.iat[i, j]!r}")
+            u, v = (c.iat[i, j].item() for c in (x, y))
+            out.append(f"convergence.csv row {i} ({x.columns[0]} {x.iat[i, 0]}), {x.columns[j]}: {u!r} against {v!r}")
     sa, sb = (json.loads((d / "summary.json").read_text()) for d in (a, b))
     out += [f"summary.json {d}" for d in _leaves(sa, sb, "")]
     return out[:first]
