@@ -1,7 +1,7 @@
 """Sweeps at the speed of the kernel: what a sweep costs beyond its pose evaluations, and whether
 its results stay the same.
 
-    python experiments/bench_sweep.py [--repeats 3] [--big-seeds 70] [--studies [NAME ...]]
+    python experiments/bench_sweep.py [--repeats 3] [--big-seeds 210] [--studies [NAME ...]]
                                       [--before REV] [--hydra-launchers] [--out DIR]
 
 One command, on this machine's cores, writing results/bench_sweep.md:
@@ -24,8 +24,8 @@ One command, on this machine's cores, writing results/bench_sweep.md:
   each run's convergence.csv (without the timing columns) and summary.json (without timing and
   versions) compared with the same run of the first timed sweep
   (``reference_runs.run_differences``).
-- **A study of ``--big-seeds`` x 144 runs** (default 70: 10,080 runs; 0 skips it): wall time,
-  CPU time, every manifest job done.
+- **A study of ``--big-seeds`` x 48 runs** (the grid's 48 operator sets with that many seeds;
+  default 210: 10,080 runs; 0 skips it): wall time, CPU time, every manifest job done.
 - **A default run** (``zrp-ga``, the paper's case study): the command's wall and CPU time, the
   run's own compute (``wall_s`` in its summary.json) and the difference, its fixed cost; the
   import time of the modules a run loads (``python -X importtime``).
@@ -169,10 +169,11 @@ def grid_problem():
     return prepare(config.load(GRID), None).task.problem
 
 
-def kernel_rates(problem, batches: list[int], seconds: float = 0.5) -> dict[int, float]:
+def kernel_rates(problem, batches: list[int], seconds: float = 0.5) -> dict[str, float]:
     """Pose evaluations per second of ``problem.costs`` on one core (one BLAS thread, the
     kernel's one thread), per batch size (genomes per call): random genomes within the gene
-    ranges, the median of 5 timings of about ``seconds`` each."""
+    ranges, the median of 5 timings of about ``seconds`` each; by wall time (key ``B``) and by
+    the process's CPU time (key ``B cpu``), which a loaded machine slows less."""
     from threadpoolctl import threadpool_limits
 
     rng = np.random.default_rng(0)
@@ -184,13 +185,15 @@ def kernel_rates(problem, batches: list[int], seconds: float = 0.5) -> dict[int,
             t0 = time.perf_counter()
             problem.costs(X)
             calls = max(1, int(seconds / max(time.perf_counter() - t0, 1e-6)))
-            times = []
+            walls, cpus = [], []
             for _ in range(5):
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 for _ in range(calls):
                     problem.costs(X)
-                times.append((time.perf_counter() - t0) / calls)
-            rates[b] = b * problem.data.M / statistics.median(times)
+                walls.append((time.perf_counter() - t0) / calls)
+                cpus.append((time.process_time() - c0) / calls)
+            rates[str(b)] = b * problem.data.M / statistics.median(walls)
+            rates[f"{b} cpu"] = b * problem.data.M / max(statistics.median(cpus), 1e-9)
     return rates
 
 
@@ -281,7 +284,8 @@ def cores() -> int:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--big-seeds", type=int, default=70, help="seeds of the big study (70: 10,080 runs; 0: none)")
+    parser.add_argument("--big-seeds", type=int, default=210,
+                        help="seeds of the big study: 48 runs each (210: 10,080 runs; 0: none)")  # fmt: skip
     parser.add_argument("--studies", nargs="*", default=None, metavar="NAME",
                         help=f"committed studies to run again and compare ({', '.join(STUDIES)}, or all; "
                              f"no name: {', '.join(CHEAP)})")  # fmt: skip
@@ -290,7 +294,13 @@ def main() -> None:
     parser.add_argument("--kernel-batches", default=f"{OFFSPRING},{48 * OFFSPRING}",
                         help="genomes per kernel call of the kernel-only timing (one run's offspring; a lockstep batch)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--from-raw", type=Path, default=None, metavar="DIR",
+                        help="write the report again from DIR/raw.json (a finished run's numbers), measuring nothing")  # fmt: skip
     args = parser.parse_args()
+    if args.from_raw:
+        raw = json.loads((args.from_raw / "raw.json").read_text())
+        write(report(raw))
+        return
     studies = CHEAP if args.studies == [] else list(STUDIES) if args.studies == ["all"] else args.studies or []
     unknown = [s for s in studies if s not in STUDIES]
     if unknown:
@@ -303,7 +313,9 @@ def main() -> None:
         codes[f"before ({args.before})"] = tree(args.before, work / "before-tree")
     problem = grid_problem()
     poses = problem.data.M
-    raw: dict = {"runs": {c: [] for c in codes}, "grids": {}, "jobs": [], "kernel": [], "load_before": load()}
+    raw: dict = {"runs": {c: [] for c in codes}, "grids": {}, "jobs": [], "kernel": [], "load_before": load(), "poses": poses,
+                 "args": {"repeats": args.repeats, "big_seeds": args.big_seeds, "before": args.before, "studies": studies,
+                          "hydra_launchers": args.hydra_launchers, "batches": batches}}  # fmt: skip
 
     def keep() -> None:
         (work / "raw.json").write_text(json.dumps(raw, indent=1, default=str))  # what a crash would not take away
@@ -326,7 +338,7 @@ def main() -> None:
                     print(f"{key}: failed, left out ({str(exc).splitlines()[-1] if str(exc) else ''})", flush=True)
                     raw["grids"].pop(key)
             keep()
-        raw["kernel"].append({str(b): r for b, r in kernel_rates(problem, batches).items()})
+        raw["kernel"].append(kernel_rates(problem, batches))
         keep()
         print(f"round {k + 1} of {args.repeats} done, load {load()}", flush=True)
     alone = sweep(GRID + LOCAL + ["hydra.launcher.lockstep=false"], None, work, "alone", poses)
@@ -345,15 +357,20 @@ def main() -> None:
     raw["imports"] = {c: import_s(code, work) for c, code in codes.items()}
     raw["load_after"] = load()
     keep()
-    text = report(args, studies, batches, poses, raw)
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "bench_sweep.md").write_text(text)
-    print(text)
+    write(report(raw))
     print(f"files in {work}")
 
 
-def report(args, studies: list[str], batches: list[int], poses: int, raw: dict) -> str:
-    n = cores()
+def write(text: str) -> None:
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "bench_sweep.md").write_text(text)
+    print(text)
+
+
+def report(raw: dict) -> str:
+    """results/bench_sweep.md from the numbers :func:`main` keeps in raw.json."""
+    args = argparse.Namespace(**raw["args"])
+    studies, batches, poses, n = args.studies, args.batches, raw["poses"], cores()
     cmd = "python experiments/bench_sweep.py" + (f" --before {args.before}" if args.before else "")
     cmd += f" --repeats {args.repeats} --big-seeds {args.big_seeds}"
     cmd += (" --studies " + " ".join(studies) if studies else "") + (" --hydra-launchers" if args.hydra_launchers else "")
@@ -378,21 +395,25 @@ def report(args, studies: list[str], batches: list[int], poses: int, raw: dict) 
             ratio = {k: statistics.median(r[k] for r in rows) / statistics.median(r[k] for r in ours) for k in ("wall_s", "cpu_s")}
             lines.append(f"\n{key} / after, zrp_ga's launcher: wall time x {ratio['wall_s']:.2f}, CPU time x {ratio['cpu_s']:.2f} (medians).")
     g = ours[0]
-    done = f"{g['done']} of {g['runs']} manifest jobs done" + ("" if all(r["done"] == r["runs"] for r in ours) else " (NOT every job done in every round)")
+    done = f"{g['done']} of {g['runs']} manifest jobs done" + ("" if all(r["done"] == r["runs"] for r in ours) else " (NOT every job done in every round)")  # fmt: skip
     lines += ["", f"The sweep's pose evaluations: {g['nevals']:,.0f} evaluations (summary.json's `nevals`, summed over "
               f"its runs) x {poses} poses = {g['pose_evals'] / 1e6:.2f} M; {done}.", "",
               "**Against the kernel alone** (`task.problem.costs` of the grid's instance, built as a run builds it, on "
               "random genomes within the gene ranges, one core, one BLAS thread, timed in each round between the "
               "sweeps):", "",
               f"| genomes per kernel call | M pose evaluations/s | kernel-only time, s | grid wall / kernel-only time | "
-              f"grid wall / (kernel-only time / {n} cores) |", "|---|---|---|---|---|"]  # fmt: skip
+              f"grid wall / (kernel-only time / {n} cores) | M pose evaluations per CPU-s | grid CPU / kernel-only CPU |",
+              "|---|---|---|---|---|---|---|"]  # fmt: skip
     for b in batches:
-        rates = [r[str(b)] for r in raw["kernel"]]
-        rate = statistics.median(rates)
+        rates, cpu_rates = [r[str(b)] for r in raw["kernel"]], [r[f"{b} cpu"] for r in raw["kernel"]]
+        rate, cpu_rate = statistics.median(rates), statistics.median(cpu_rates)
         kernel = g["pose_evals"] / rate
-        what = "one run's offspring" if b == OFFSPRING else f"{b // OFFSPRING} runs x {OFFSPRING} offspring" if b % OFFSPRING == 0 else ""
+        what = "one run's offspring" if b == OFFSPRING else f"{b // OFFSPRING} runs x {OFFSPRING} offspring" if b % OFFSPRING == 0 else ""  # fmt: skip
         lines.append(f"| {b} ({what}) | {rate / 1e6:.2f} ({min(rates) / 1e6:.2f} - {max(rates) / 1e6:.2f}) | {kernel:.2f} | "
-                     f"{wall / kernel:.1f} | {wall * n / kernel:.1f} |")  # fmt: skip
+                     f"{wall / kernel:.1f} | {wall * n / kernel:.1f} | {cpu_rate / 1e6:.2f} | "
+                     f"{cpu / (g['pose_evals'] / cpu_rate):.1f} |")  # fmt: skip
+    lines += ["", "(The last two columns time the same calls by CPU time, which waiting for a busy core does not "
+              "inflate: on a loaded machine the CPU ratio is the steadier one.)"]
     kernel_big = g["pose_evals"] / statistics.median(r[str(max(batches))] for r in raw["kernel"])
     gens = statistics.median(r["generations_s"] for r in ours)
     lines += ["", f"**Per-run overhead**: the runs' generations (convergence.csv's `eval_s` + `bookkeeping_s` + "
@@ -402,7 +423,8 @@ def report(args, studies: list[str], batches: list[int], poses: int, raw: dict) 
               f"(composition, building, diagnostics, files, idle cores); the GA's own work in the generations beyond "
               f"the kernel {(gens - kernel_big) / g['runs'] * 1000:.0f} ms per run; CPU {cpu / g['runs'] * 1000:.0f} ms "
               "per run in all. (If the runs of a batch share their generations' timing, the sum counts it once per "
-              "run and the first figure understates the overhead.)"]  # fmt: skip
+              "run and the first figure understates the overhead. The runs' timings are wall-clock: on a loaded "
+              "machine they include waiting for a core.)"]  # fmt: skip
     jobs = raw["jobs"]
     lines += ["", f"One job of the grid as a process of its own (`zrp-ga experiment=operator_grid hydra.mode=RUN "
               f"crossover=sbx mutation=gaussian inversion=segment rotation=segment seed=K`, as a launcher that starts "
@@ -424,7 +446,7 @@ def report(args, studies: list[str], batches: list[int], poses: int, raw: dict) 
                   f"`zrp-ga experiment=operator_grid hydra/launcher=local seed=range({args.big_seeds})`: "
                   f"**{big['wall_s']:.1f} s wall** ({big['wall_s'] / 60:.1f} min; {big['wall_s'] / big['runs'] * 1000:.1f} s per "
                   f"1,000 runs), {big['cpu_s']:.1f} s CPU ({big['cpu_s'] / big['runs'] * 1000:.0f} ms per run); "
-                  f"{big['done']:,} of {big['runs']:,} manifest jobs done; {big['pose_evals'] / 1e9:.2f} G pose evaluations.",
+                  f"{big['done']:,} of {big['runs']:,} manifest jobs done; {big['pose_evals'] / 1e6:,.0f} M pose evaluations.",
                   "", f"10,000 such runs at this machine's speed, one worker being one core: "
                   f"{big['cpu_s'] / big['runs'] * 10_000 / 60:.1f} worker-minutes on zrp_ga's launcher; "
                   f"{statistics.median(j['cpu_s'] for j in jobs) * 10_000 / 60:.0f} worker-minutes with a process per "
