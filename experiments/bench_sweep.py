@@ -69,12 +69,13 @@ LOCAL = LAUNCHERS["zrp_ga"]
 RUN_MODULES = ("zrp_ga.app zrp_ga.robots zrp_ga.problems.simulated zrp_ga.algorithms.ga zrp_ga.operators "
                "zrp_ga.callbacks zrp_ga.summary zrp_ga.records zrp_ga.checkpoint threadpoolctl")  # fmt: skip
 OFFSPRING = 50  # lambda of the grid's runs
-# The committed studies (experiments/README.md): their sweeps (experiment configs), their report's
-# options (those that made the committed tables) and the committed tables compared, per report.
+# The committed studies (experiments/README.md): their sweeps (experiment configs), and per report
+# the options that made the committed tables and those tables (a committed name: the report's file
+# of that name; "committed=report's": a report's file kept under another name).
 STUDIES = {
     "paper_study": (["paper_study"], [(["--target", "0.0027"], ["paper_study/summary.md"])]),
     "operator_study": (["operator_study"], [(["--only", "refine=none"], ["operator_study/summary.md"]),
-                                            ([], ["operator_study/summary_with_and_without_the_step.md"])]),
+                                            ([], ["operator_study/summary_with_and_without_the_step.md=summary.md"])]),
     "population_sweep": (["population_sweep"], [([], ["population_sweep/summary.md"])]),
     "methods": (["methods_ga", "methods_baselines"], [([], ["methods/summary.md"])]),
     "heldout": (["heldout", "heldout_blend", "heldout_tuned"], [([], ["heldout/summary.md", "heldout/per_instance.md"])]),
@@ -254,7 +255,8 @@ def study(name: str, work: Path) -> dict:
         w, c, _ = command([str(where), "--out", str(out), "--formats", "none", *options], None, work, "zrp_ga.report")
         wall, cpu = wall + w, cpu + c
         for f in files:
-            differences[f] = table_differences(RESULTS / f, out / Path(f).name)
+            committed, _, made = f.partition("=")
+            differences[committed] = table_differences(RESULTS / committed, out / (made or Path(committed).name))
     return {"wall_s": wall, "cpu_s": cpu, "runs": runs, "done": done, "differences": differences}
 
 
