@@ -424,14 +424,15 @@ def report(raw: dict) -> str:
     kernel_big = g["pose_evals"] / statistics.median(r[str(max(batches))] for r in raw["kernel"])
     gens = statistics.median(r["generations_s"] for r in ours)
     lines += ["", f"**Per-run overhead**: the runs' generations (convergence.csv's `eval_s` + `bookkeeping_s` + "
-              f"`refine_s`, summed over the 144 runs) took {gens:.1f} s, of which the kernel alone would take "
-              f"{kernel_big:.2f} s (at {max(batches)} genomes a call); wall x cores - generations' time = "
-              f"{wall * n - gens:.1f} s, {(wall * n - gens) / g['runs'] * 1000:.0f} ms per run outside its generations "
-              f"(composition, building, diagnostics, files, idle cores); the GA's own work in the generations beyond "
-              f"the kernel {(gens - kernel_big) / g['runs'] * 1000:.0f} ms per run; CPU {cpu / g['runs'] * 1000:.0f} ms "
-              "per run in all. (If the runs of a batch share their generations' timing, the sum counts it once per "
-              "run and the first figure understates the overhead. The runs' timings are wall-clock: on a loaded "
-              "machine they include waiting for a core.)"]  # fmt: skip
+              f"`refine_s`, summed over the {g['runs']} runs; their cost evaluations included) took {gens:.1f} s, of which "
+              f"the kernel alone would take {kernel_big:.2f} s (at {max(batches)} genomes a call). (wall x cores - "
+              f"generations' time) / runs = ({wall:.1f} x {n} - {gens:.1f}) / {g['runs']} = "
+              f"**{(wall * n - gens) / g['runs'] * 1000:.0f} ms per run outside its generations** (composition, building, "
+              f"diagnostics, files, idle cores); the GA's own work in the generations beyond the kernel: "
+              f"{(gens - kernel_big) / g['runs'] * 1000:.0f} ms per run; CPU: {cpu / g['runs'] * 1000:.0f} ms per run in all. "
+              "(The runs' timings are wall-clock: on a loaded machine they include waiting for a core. If the runs of "
+              "a batch each record the batch's whole generation time, the sum counts it once per run and the "
+              "overhead comes out too low, even negative.)"]  # fmt: skip
     jobs = raw["jobs"]
     lines += ["", f"One job of the grid as a process of its own (`zrp-ga experiment=operator_grid hydra.mode=RUN "
               f"crossover=sbx mutation=gaussian inversion=segment rotation=segment seed=K`, as a launcher that starts "
