@@ -400,7 +400,8 @@ def report(raw: dict) -> str:
     for key, rows in raw["grids"].items():
         if key != "after / zrp_ga":
             ratio = {k: statistics.median(r[k] for r in rows) / statistics.median(r[k] for r in ours) for k in ("wall_s", "cpu_s")}
-            lines.append(f"\n{key} / after, zrp_ga's launcher: wall time x {ratio['wall_s']:.2f}, CPU time x {ratio['cpu_s']:.2f} (medians).")
+            c, name = key.split(" / ")
+            lines.append(f"\n{c}, {name} launcher / after, zrp_ga's launcher: wall time x {ratio['wall_s']:.2f}, CPU time x {ratio['cpu_s']:.2f} (medians).")
     g = ours[0]
     done = f"{g['done']} of {g['runs']} manifest jobs done" + ("" if all(r["done"] == r["runs"] for r in ours) else " (NOT every job done in every round)")  # fmt: skip
     lines += ["", f"The sweep's pose evaluations: {g['nevals']:,.0f} evaluations (summary.json's `nevals`, summed over "
