@@ -38,7 +38,9 @@ One command, on this machine's cores, writing results/bench_sweep.md:
   joblib launcher too (and its basic one with ``--before``); they take minutes.
 
 Variants are run in turn, ``--repeats`` times, so that the load of a shared machine falls on all
-of them. Files of the sweeps stay in ``--out`` (default: a new temporary directory).
+of them. Files of the sweeps stay in ``--out`` (default: a new temporary directory), with the
+numbers in its raw.json, written as they come; ``--from-raw DIR`` writes the report again from
+them.
 """
 
 from __future__ import annotations
@@ -82,13 +84,14 @@ STUDIES = {
     "suite_factors": (["suite_factors"], [([], ["suite_factors/summary.md"])]),
     "operator_suite": (["operator_suite"], [([], ["operator_suite/summary.md"])]),
 }  # fmt: skip
-# What --studies runs without names: 60 + 480 + 50 runs, a few minutes on 2 cores. The others
+# What --studies runs without names: 60 + 480 + 50 runs. On the code before lockstep (3befbdd),
+# with the machine's load average at 5 - 8 on its 2 cores: 52 s, about 12 min and 3 min. The others
 # take longer (methods: 50,000-evaluation GA and CMA-ES runs; heldout: 150 runs and suite_factors
-# 180 runs of 20,000 evaluations; operator_suite: 864 runs, 10 - 25 minutes before lockstep).
+# 180 runs of 20,000 evaluations; operator_suite: 864 runs, 617 - 1,548 s in experiments/README.md).
 CHEAP = ["paper_study", "operator_study", "population_sweep"]
-LEFT_OUT = ("Not re-run by this script: the pose-selection studies (their own script, experiments/pose_selection.py, "
-            "and 50,000-evaluation runs on the UR10's 1,495 rows: about 40 minutes), the Optuna tuning (an extra "
-            "install, `.[tune]`) and the peers (other packages, `.[peers]`).")  # fmt: skip
+LEFT_OUT = ("Not re-run by this script: the pose-selection studies (their own script, experiments/pose_selection.py, and "
+            "50,000-evaluation runs on the UR10's 1,495 rows: the operators study alone took 2,198 s, experiments/README.md "
+            "section h), the Optuna tuning (an extra install, `.[tune]`) and the peers (other packages, `.[peers]`).")  # fmt: skip
 
 
 def tree(rev: str, where: Path) -> Path:
