@@ -8,7 +8,8 @@ Each run goes through the command line (``python -m zrp_ga.app``, as ``zrp-ga``)
 pseudo-inverse step, LM, CMA-ES), measured (the UR10 laser-tracker data), pose selection, and a
 GA run stopped by Ctrl-C after generation 23 then resumed (``zrp-ga resume=DIR``). Written per
 run: ``convergence.csv`` without its timing columns, and the numbers of ``summary.json`` that
-do not depend on timing or versions. ``--compare`` prints every difference and exits 1 if any.
+do not depend on timing or versions. ``--compare`` prints every difference and exits 1 if any. :func:`run_differences` compares two
+run directories in the same terms (experiments/bench_sweep.py compares whole sweeps with it).
 """
 
 from __future__ import annotations
@@ -21,9 +22,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
-TIMING = ["eval_s", "bookkeeping_s", "refine_s", "wall_s"]
+from zrp_ga.callbacks import WALL_CLOCK_COLUMNS as TIMING
+
 SMALL = ["problem=multipose", "problem.n_poses=10", "problem.n_validation=10", "seed=4"]
 RUNS = {
     "paper_ga_pinv": [],
@@ -52,6 +55,7 @@ runpy.run_module("zrp_ga.app", run_name="__main__")
 SUMMARY_KEYS = ["instance", "algorithm", "seed", "final_cost", "optimiser_cost", "returned", "initial_cost",
                 "nominal_cost", "nevals", "stop_reason", "validation_rms_mm", "validation_max_mm", "param_err",
                 "identifiability", "best_genome", "choices"]  # fmt: skip
+SUMMARY_TIMING = ("wall_s", "versions")  # the fields of summary.json that depend on timing or on installed versions
 
 
 def command(args: list[str], script: str | None = None) -> subprocess.CompletedProcess:
@@ -109,6 +113,34 @@ def compare(a: Path, b: Path) -> int:
             bad += 1
     print("identical" if not bad else f"{bad} file(s) differ")
     return 1 if bad else 0
+
+
+def run_differences(a: Path, b: Path, first: int = 3) -> list[str]:
+    """The first ``first`` differences between the runs in directories ``a`` and ``b``: their
+    convergence.csv without its timing columns (values read exactly, NaN equal to NaN) and every
+    field of their summary.json but :data:`SUMMARY_TIMING`, at any depth; [] when they agree."""
+    out: list[str] = []
+    x, y = (pd.read_csv(d / "convergence.csv", float_precision="round_trip") for d in (a, b))
+    x, y = (c.drop(columns=[t for t in TIMING if t in c.columns]) for c in (x, y))
+    if list(x.columns) != list(y.columns) or len(x) != len(y):
+        out.append(f"convergence.csv: columns {list(x.columns)} and {len(x)} rows against {list(y.columns)} and {len(y)} rows")
+    else:
+        same = (x.values == y.values) | (pd.isna(x).values & pd.isna(y).values)
+        for i, j in zip(*np.nonzero(~same)):
+            u, v = (c.iat[i, j].item() for c in (x, y))
+            out.append(f"convergence.csv row {i} ({x.columns[0]} {x.iat[i, 0]}), {x.columns[j]}: {u!r} against {v!r}")
+    sa, sb = (json.loads((d / "summary.json").read_text()) for d in (a, b))
+    out += [f"summary.json {d}" for d in _leaves(sa, sb, "")]
+    return out[:first]
+
+
+def _leaves(a, b, key: str) -> list[str]:
+    if isinstance(a, dict) and isinstance(b, dict):
+        return [d for k in sorted(set(a) | set(b)) if k not in SUMMARY_TIMING
+                for d in _leaves(a.get(k, "<absent>"), b.get(k, "<absent>"), f"{key}.{k}" if key else k)]  # fmt: skip
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        return [d for i, (u, v) in enumerate(zip(a, b)) for d in _leaves(u, v, f"{key}[{i}]")]
+    return [] if a == b or (a != a and b != b) else [f"{key}: {a!r} against {b!r}"]
 
 
 def main() -> None:

@@ -229,3 +229,40 @@ def test_cluster_launchers_run_a_sweep_here(tmp_path, launcher, plugin):
     assert again.returncode == 0, again.stderr[-2000:]
     assert {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")} == runs
     assert list(read_manifest(sweep)["status"]) == ["done", "done"]
+
+
+def _reference_runs():
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "reference_runs.py"
+    spec = importlib.util.spec_from_file_location("reference_runs", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _run_files(where: Path, best: list[float], eval_s: list[float], summary: dict) -> Path:
+    where.mkdir()
+    rows = ["gen,nevals,best,val_rms_mm,eval_s,bookkeeping_s,refine_s,wall_s"]
+    rows += [f"{g},50,{b!r},{'nan' if g == 0 else 1.5},{t},0.001,0.0,{t + 0.01}" for g, (b, t) in enumerate(zip(best, eval_s))]
+    (where / "convergence.csv").write_text("\n".join(rows) + "\n")
+    (where / "summary.json").write_text(json.dumps(summary))
+    return where
+
+
+def test_run_comparison_ignores_timing_and_names_the_first_difference(tmp_path):
+    differences = _reference_runs().run_differences
+    summary = {"final_cost": 0.25, "nevals": 100, "wall_s": 1.0, "versions": {"numpy": "2.0"}, "param_err": {"calibrated": 0.5}}
+    a = _run_files(tmp_path / "a", [0.5, 0.25], [0.01, 0.02], summary)
+    # other timings, versions and wall_s: the same run
+    b = _run_files(tmp_path / "b", [0.5, 0.25], [0.03, 0.05], {**summary, "wall_s": 9.0, "versions": {"numpy": "2.1"}})
+    assert differences(a, b) == []
+    # one ulp off in generation 1's best, and a nested summary field changed
+    c = _run_files(tmp_path / "c", [0.5, float(np.nextafter(0.25, 1))], [0.01, 0.02], {**summary, "param_err": {"calibrated": 0.4}})
+    found = differences(a, c)
+    assert len(found) == 2
+    assert found[0].startswith("convergence.csv row 1 (gen 1), best: 0.25 against 0.25000000000000006")
+    assert found[1] == "summary.json param_err.calibrated: 0.5 against 0.4"
+    d = _run_files(tmp_path / "d", [0.5], [0.01], summary)  # a run that stopped a generation earlier
+    assert differences(a, d) == [f"convergence.csv: columns {['gen', 'nevals', 'best', 'val_rms_mm']} and 2 rows against "
+                                 f"{['gen', 'nevals', 'best', 'val_rms_mm']} and 1 rows"]  # fmt: skip
