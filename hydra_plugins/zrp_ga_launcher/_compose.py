@@ -135,7 +135,10 @@ class ComposingLoader(ConfigLoader):
         shape, options, values = self._classify(overrides)
         key = (shape, tuple(options.items()))
         cfg = None if key in self._templates else self._from_base(master_config, shape, options)
-        if cfg is None:
+        if cfg is not None:  # kept for the jobs with the same options (other values: seeds): put together once
+            self._templates[key] = _Composed(pickle.dumps(cfg), list(lines), dict(options), str(master_config.hydra.job.config_name),
+                                             OmegaConf.to_container(cfg.hydra.runtime.choices))  # fmt: skip
+        else:
             template = self._templates.get(key)  # perhaps composed on the way, as a group's variant
             if template is None:
                 cfg, self._templates[key] = self._hydra(master_config, lines, options)
