@@ -5,9 +5,11 @@ paper's case study; any setting can be overridden (``zrp-ga problem=multipose se
 
 :func:`main` is the ``@hydra.main`` entry point: it reads what Hydra knows about the run (its
 directory, the command line's overrides, the groups' options, the sweep job) and hands the
-config to the run layer (:mod:`zrp_ga.run`), which checks, runs and records it. :func:`cli` is
-the console script, which turns every error in the user's input into one line and exit code 2.
-Heavy modules are imported where they are used, so that ``--help`` starts fast.
+config to the run layer (:mod:`zrp_ga.run`), which checks, runs and records it (a single run
+was checked and built before Hydra made its directory, by the ``Prepare`` callback of
+:mod:`zrp_ga.cli.callbacks`, and is run as built). :func:`cli` is the console script, which
+turns every error in the user's input into one line and exit code 2. Heavy modules are
+imported where they are used, so that ``--help`` starts fast.
 """
 
 from __future__ import annotations
