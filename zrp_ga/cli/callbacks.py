@@ -54,7 +54,7 @@ class Prepare(Callback):
         _PREPARED[os.path.abspath(config.hydra.run.dir)] = p
 
     def on_run_end(self, config: DictConfig, **kwargs: Any) -> None:
-        _PREPARED.clear()  # a run whose job never started (Hydra failed before it)
+        _PREPARED.clear()  # nothing kept past its run (main took it, or the job never started)
 
 
 _PREPARED: dict[str, Any] = {}  # Prepare's run, by the directory Hydra runs it in, until main takes it
