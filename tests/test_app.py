@@ -226,3 +226,28 @@ def test_a_named_instance_is_the_same_whatever_the_runs_seed():
 def test_over_floor_is_refused_where_there_is_no_floor(tmp_path):
     with pytest.raises(ConfigError, match="objective: over_floor"):
         app.prepare(config.load(["experiment=pose_selection", "objective=over_floor"]), tmp_path / "run")
+
+
+def test_the_command_line_builds_a_run_once(tmp_path, monkeypatch, capsys):
+    """Prepare (the callback that checks before Hydra makes the directory) builds the run and
+    main runs that very run: one prepare and one build per run, with the group options the
+    command line chose and the directory Hydra made (absolute, as it prints)."""
+    from hydra.core.global_hydra import GlobalHydra
+
+    from zrp_ga.cli import callbacks
+    from zrp_ga.run import build
+
+    calls = {"prepare": 0, "build": 0}
+    for name in calls:
+        real = getattr(build, name)
+        monkeypatch.setattr(build, name, lambda *a, _f=real, _n=name, **k: calls.__setitem__(_n, calls[_n] + 1) or _f(*a, **k))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "argv", ["zrp-ga", "hydra.run.dir=run", "crossover=sbx", "problem.n_validation=5",
+                                      "population.generations=2", "progress=false"])  # fmt: skip
+    GlobalHydra.instance().clear()
+    app.main()
+    assert calls == {"prepare": 1, "build": 1}
+    assert callbacks._PREPARED == {}  # handed over, nothing kept for the next run
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["choices"]["crossover"] == "sbx" and summary["choices"]["problem"] == "paper"
+    assert f"results in {tmp_path / 'run'}\n" in capsys.readouterr().out

@@ -2,13 +2,15 @@
 
 :class:`Prepare` checks a single run's config and builds its objects (robot, problem,
 optimiser) before Hydra creates the run's directory, so that bad input stops with one line and
-leaves nothing behind (the problem instance it builds is kept for the run,
-:mod:`zrp_ga.run.shared`). :class:`Manifest` prepares the sweep directory and writes the
-manifest's table (each job records its own states, :func:`zrp_ga.run.execute.sweep_job`).
+leaves nothing behind; the run it built is handed to :func:`zrp_ga.cli.main`
+(:func:`take_prepared`), which runs it without building it again. :class:`Manifest` prepares
+the sweep directory and writes the manifest's table (each job records its own states,
+:func:`zrp_ga.run.execute.sweep_job`).
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -36,8 +38,10 @@ class Prepare(Callback):
     def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
         from zrp_ga.run import build
 
+        _PREPARED.clear()
         try:
-            p = build.prepare(config, Path(config.hydra.run.dir), list(config.hydra.overrides.task))
+            p = build.prepare(config, Path(config.hydra.run.dir), list(config.hydra.overrides.task),
+                              dict(config.hydra.runtime.choices))  # fmt: skip
         except (ValueError, OSError) as exc:
             raise Refused(exc) from None
         except MemoryError as exc:  # not a warning, and not the work again (zrp_ga.budget's estimate missed)
@@ -47,6 +51,22 @@ class Prepare(Callback):
             with open_dict(config.hydra), read_write(config.hydra):
                 config.hydra.run.dir = str(p.out)
                 config.hydra.output_subdir = ".hydra/resume"
+        _PREPARED[os.path.abspath(config.hydra.run.dir)] = p
+
+    def on_run_end(self, config: DictConfig, **kwargs: Any) -> None:
+        _PREPARED.clear()  # nothing kept past its run (main took it, or the job never started)
+
+
+_PREPARED: dict[str, Any] = {}  # Prepare's run, by the directory Hydra runs it in, until main takes it
+
+
+def take_prepared(out: Path) -> Any:
+    """The run (a :class:`zrp_ga.run.build.Prepared`) that :class:`Prepare` checked and built
+    for Hydra's run directory ``out``, handed over once; None when Prepare did not run."""
+    p = _PREPARED.pop(os.path.abspath(out), None)
+    if p is not None and p.state is None:
+        p.out = Path(out)  # the directory as Hydra names it to the job (absolute)
+    return p
 
 
 def _ours(hydra: DictConfig) -> bool:
