@@ -48,6 +48,7 @@ from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+KEEP_ASKED = 1024  # job configs kept between the sweeper's check and the launcher's call
 Shape = tuple  # one entry per override: ("group", key), ("value", key, type name) or ("line", text)
 
 
@@ -82,6 +83,7 @@ class ComposingLoader(ConfigLoader):
         self._bases: dict[Shape, _Composed] = {}  # shape -> the first composition of that shape
         self._variants: dict[tuple, _Composed | None] = {}  # (shape, base lines, group, option) -> None if not separable
         self._fixed_bases: dict[tuple, _Composed] = {}  # (shape, non-separable options) -> the first composition with them
+        self._asked: dict[tuple, DictConfig] = {}  # (master, overrides) -> the job's config, asked for once
 
     @classmethod
     def wrap(cls, loader: ConfigLoader, enabled: bool = True) -> ComposingLoader:
@@ -130,6 +132,18 @@ class ComposingLoader(ConfigLoader):
     def load_sweep_config(self, master_config: DictConfig, sweep_overrides: list[str]) -> DictConfig:
         if not self.enabled or OmegaConf.select(master_config, "hydra.searchpath"):
             return self.loader.load_sweep_config(master_config, sweep_overrides)
+        # Hydra's sweeper composes every job to check it and drops the config (it changes
+        # nothing in it); the launcher then asks for it again: the same config is kept for that
+        # second call (a bounded number of them)
+        key = (id(master_config), tuple(sweep_overrides))
+        if key in self._asked:
+            return self._asked.pop(key)
+        cfg = self._compose(master_config, sweep_overrides)
+        if len(self._asked) < KEEP_ASKED:
+            self._asked[key] = cfg
+        return cfg
+
+    def _compose(self, master_config: DictConfig, sweep_overrides: list[str]) -> DictConfig:
         lines = [*master_config.hydra.overrides.hydra, *sweep_overrides]
         overrides = [self._parse(line) for line in lines]
         shape, options, values = self._classify(overrides)
