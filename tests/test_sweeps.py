@@ -62,14 +62,15 @@ def hydra_loader():
         yield GlobalHydra.instance().hydra.config_loader
 
 
-def _compare_with_hydra(loader, master_overrides: list[str], jobs: list[list[str]]) -> int:
-    """Compose ``jobs`` with the cached loader and with Hydra's; assert equal; Hydra's count."""
+def _compare_with_hydra(loader, master_overrides: list[str], jobs: list[list[str]], prefetch: bool = True) -> int:
+    """Compose ``jobs`` with the cached loader and with Hydra's; assert equal; Hydra's count
+    (``prefetch``: the variants of the sweep's options composed ahead, in forked processes)."""
     from hydra.types import RunMode
 
     from hydra_plugins.zrp_ga_launcher._compose import ComposingLoader
 
     master = loader.load_configuration("config", master_overrides + ["hydra.mode=MULTIRUN"], RunMode.MULTIRUN)
-    cached = ComposingLoader.wrap(loader)
+    cached = ComposingLoader(loader, prefetch=prefetch)
     for job in jobs:
         ours, theirs = cached.load_sweep_config(master, job), loader.load_sweep_config(master, job)
         assert OmegaConf.to_yaml(ours) == OmegaConf.to_yaml(theirs), job
@@ -324,4 +325,6 @@ def test_a_suite_sweep_composes_once_per_instance_not_per_job(hydra_loader):
                              ["gaussian", "polynomial"], range(2))  # fmt: skip
     jobs = [[f"instance={i}", f"crossover={c}", f"mutation={m}", f"seed={s}"] for i, c, m, s in grid]
     # the first job; the two other instances; for each instance, crossover and mutation changed
-    assert _compare_with_hydra(hydra_loader, ["experiment=operator_suite"], jobs) == 1 + 2 + 3 * 2
+    # (without composing ahead the variants of the options the experiment sweeps and these jobs do not)
+    assert _compare_with_hydra(hydra_loader, ["experiment=operator_suite"], jobs, prefetch=False) == 1 + 2 + 3 * 2
+    assert _compare_with_hydra(hydra_loader, ["experiment=operator_suite"], jobs) > 9  # composed ahead: the same configs

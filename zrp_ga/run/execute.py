@@ -128,8 +128,7 @@ Job = tuple  # (cfg, out, sweep, choices): a sweep job's config, run directory, 
 def batch_key(cfg: DictConfig) -> str | None:
     """Jobs of a sweep with the same key can be evolved together (:func:`sweep_batch`): GA runs
     on the same problem instance with the same population shapes. None: the job runs alone."""
-    cfg = task_config(cfg)
-    if str(cfg.algorithm.get("_target_", "")) != "zrp_ga.algorithms.ga.GA" or cfg.get("resume"):
+    if str(cfg.algorithm.get("_target_", "")) != "zrp_ga.algorithms.ga.GA" or cfg.get("resume"):  # (the hydra node left in)
         return None
     pop = cfg.algorithm.population
     return f"{instance_key(cfg)}|mu={int(pop.mu)}|lambda={int(pop.lambda_)}"
