@@ -113,6 +113,9 @@ class GA(Algorithm):
         else:
             tb.register("repair", repair, low=problem.lower, up=problem.upper, method=self.repair)
         self.probs = np.array([self.variation[key].prob if hasattr(tb, alias) else 0.0 for alias, key in UNARY])
+        self.has = {alias for alias in ("mate", "mutate", "invert", "rotate", "refine") if hasattr(tb, alias)}
+        # runs evolved together that repair alike into the same ranges are repaired in one call
+        self.repair_key = None if isinstance(problem, Repairing) else (self.repair, id(problem))
 
     def _register(self, alias: str, op: Callable) -> None:
         """Register ``op`` in the toolbox; remember its function and parameters (those of a
@@ -243,19 +246,25 @@ def _groups(runs: Sequence[GA], alias: str, which: Sequence[int]) -> list[list[i
     return list(groups.values())
 
 
-def _apply(runs: Sequence[GA], alias: str, rows: dict[int, tuple[NDArray[np.intp], ...]], off: Array) -> None:
-    """Apply each run's ``alias`` operator to its offspring ``off[rows[i][j]]`` (one index
-    array, or two for crossover's pairs), in place: one call per group of runs
-    (:func:`_groups`) on the rows of all its runs, each run's random numbers from its own
-    generator (:class:`zrp_ga.operators.base.Streams`)."""
-    for group in _groups(runs, alias, list(rows)):
-        index = [np.concatenate([rows[i][j] for i in group]) for j in range(len(rows[group[0]]))]
+def _apply(runs: Sequence[GA], alias: str, rows: NDArray[np.intp], owner: NDArray[np.intp], off: Array,
+           partner: NDArray[np.intp] | None = None) -> None:  # fmt: skip
+    """Apply each run's ``alias`` operator to its offspring ``off[rows]`` (with ``off[partner]``
+    for crossover's pairs; ``owner``: the run of each row, rows in the order of the runs), in
+    place: one call per group of runs (:func:`_groups`) on the rows of all its runs, each run's
+    random numbers from its own generator (:class:`zrp_ga.operators.base.Streams`)."""
+    if not len(rows):
+        return
+    present = np.unique(owner)
+    for group in _groups(runs, alias, present.tolist()):
+        sel = slice(None) if len(group) == len(present) else np.isin(owner, group)
+        index = [rows[sel]] if partner is None else [rows[sel], partner[sel]]
         genes = [off[ix] for ix in index]  # copies; the operators change them in place
         if len(group) == 1:
             getattr(runs[group[0]].toolbox, alias)(*genes)
         else:
             fn, params, _ = runs[group[0]].ops[alias]
-            fn(*genes, rng=Streams([runs[i].rng for i in group], [len(rows[i][0]) for i in group]), **params)
+            counts = np.bincount(owner[sel], minlength=len(runs))[group]
+            fn(*genes, rng=Streams([runs[i].rng for i in group], counts), **params)
         for ix, g in zip(index, genes):
             off[ix] = g
 
@@ -273,41 +282,46 @@ def step_together(runs: Sequence[GA]) -> None:
     order), then each child mutated, inverted and rotated with their probabilities, genes
     repaired into their ranges; a share of the children takes the pseudo-inverse step; the
     changed children evaluated (unchanged clones keep their parent's cost); survival."""
-    lams = [ga._offspring_count() for ga in runs]
+    R = len(runs)
+    lams = np.array([ga._offspring_count() for ga in runs])
     starts = np.concatenate([[0], np.cumsum(lams)]).astype(np.intp)
     spans = [slice(int(a), int(b)) for a, b in itertools.pairwise(starts)]
-    parents = _select(runs, lams)
-    pops = [ga.pop for ga in runs]
-    bases = np.concatenate([[0], np.cumsum([len(p) for p in pops])[:-1]])
-    flat = np.concatenate([p + b for p, b in zip(parents, bases)]) if len(runs) > 1 else parents[0]
-    off = (np.concatenate(pops) if len(runs) > 1 else pops[0])[flat]  # fancy indexing copies: the clones
-    off_costs = (np.concatenate([ga.costs for ga in runs]) if len(runs) > 1 else runs[0].costs)[flat]
-    changed = np.zeros(len(off), dtype=bool)
-    pairs = {}  # crossover of each run's first pairs: how many, drawn by the run
-    for i, ga in enumerate(runs):
-        if hasattr(ga.toolbox, "mate"):
-            n_cx = 2 * ga.rng.binomial(lams[i] // 2, ga.variation["crossover"].prob)
-            if n_cx:
-                first = starts[i] + np.arange(0, n_cx, 2)
-                pairs[i] = (first, first + 1)
-                changed[starts[i] : starts[i] + n_cx] = True
-    _apply(runs, "mate", pairs, off)
-    chosen = [ga.rng.random((3, lam)) < ga.probs[:, None] for ga, lam in zip(runs, lams)]  # who mutates, inverts, rotates
-    for j, (alias, _) in enumerate(UNARY):
-        picked = {i: (starts[i] + np.flatnonzero(c[j]),) for i, c in enumerate(chosen) if hasattr(runs[i].toolbox, alias) and c[j].any()}
-        _apply(runs, alias, picked, off)
-        for i in picked:
-            changed[spans[i]] |= chosen[i][j]
-    _repair(runs, off, spans, range(len(runs)))
+    owner = np.repeat(np.arange(R), lams)  # the run of each offspring
+    place = np.arange(len(owner)) - starts[owner]  # its place among its run's offspring
+    parents = _select(runs, lams.tolist())
+    if R == 1:
+        off, off_costs = runs[0].pop[parents[0]], runs[0].costs[parents[0]]  # fancy indexing copies: the clones
+    else:
+        bases = np.concatenate([[0], np.cumsum([len(ga.pop) for ga in runs])[:-1]])
+        flat = np.concatenate(parents) + np.repeat(bases, lams)
+        off, off_costs = np.concatenate([ga.pop for ga in runs])[flat], np.concatenate([ga.costs for ga in runs])[flat]
+    # crossover of each run's first pairs: how many, drawn by the run; then the pairs, in place
+    n_cx = np.array([2 * ga.rng.binomial(lam // 2, ga.variation["crossover"].prob) if "mate" in ga.has else 0
+                     for ga, lam in zip(runs, lams.tolist())])  # fmt: skip
+    changed = place < n_cx[owner]
+    first = np.flatnonzero(changed & (place % 2 == 0))
+    _apply(runs, "mate", first, owner[first], off, first + 1)
+    chosen = np.concatenate([ga.rng.random((3, lam)) < ga.probs[:, None] for ga, lam in zip(runs, lams.tolist())], axis=1)
+    for j, (alias, _) in enumerate(UNARY):  # who mutates, inverts, rotates
+        mask = chosen[j] & np.array([alias in ga.has for ga in runs])[owner]
+        rows = np.flatnonzero(mask)
+        _apply(runs, alias, rows, owner[rows], off)
+        changed |= mask
+    _repair(runs, off, spans, range(R))
     refined = _refine(runs, off, spans)
     new = np.flatnonzero(changed | refined)  # unchanged clones keep their parent's cost
     values = _evaluate(runs, off[new], np.searchsorted(new, starts))
     off_costs[new] = values
-    _survive(runs, off, off_costs, spans, new, values, refined, starts)
+    _survive(runs, off, off_costs, spans, new, values, refined, starts, owner)
 
 
 def _repair(runs: Sequence[GA], off: Array, spans: list[slice], which: Sequence[int]) -> None:
-    """Each run's repair of its offspring (the gene ranges, or its problem's own), in place."""
+    """Each run's repair of its offspring (the gene ranges, or its problem's own), in place; one
+    call when every run repairs alike into the same ranges."""
+    which = list(which)
+    if len(which) == len(runs) > 1 and runs[0].repair_key is not None and all(ga.repair_key == runs[0].repair_key for ga in runs):
+        runs[0].toolbox.repair(off)
+        return
     for i in which:
         runs[i].toolbox.repair(off[spans[i]])  # a view: repaired in place
 
@@ -331,20 +345,22 @@ def _refine(runs: Sequence[GA], off: Array, spans: list[slice]) -> NDArray[np.bo
     """A share of each run's children takes the pseudo-inverse step (the paper's step 8);
     repaired. Returns which children took it."""
     refined = np.zeros(len(off), dtype=bool)
-    picked = {}
+    rows, owner = [], []
     for i, ga in enumerate(runs):
         lam = spans[i].stop - spans[i].start
-        n = round(ga.refine_conf.share * lam) if hasattr(ga.toolbox, "refine") else 0
+        n = round(ga.refine_conf.share * lam) if "refine" in ga.has else 0
         if n:
-            picked[i] = (spans[i].start + ga.rng.choice(lam, size=n, replace=False),)
-            refined[picked[i][0]] = True
-    if picked:
+            rows.append(spans[i].start + ga.rng.choice(lam, size=n, replace=False))
+            owner.append(np.full(n, i))
+    if rows:
         t0 = time.perf_counter()
-        _apply(runs, "refine", picked, off)
+        index, who = np.concatenate(rows), np.concatenate(owner)
+        _apply(runs, "refine", index, who, off)
+        refined[index] = True
         if len(runs) > 1:  # alone, the toolbox's refine is timed by the run's callback
-            for i in picked:
-                runs[i].shared_s["refine_s"] += (time.perf_counter() - t0) / len(picked)
-        _repair(runs, off, spans, list(picked))
+            for i in np.unique(who).tolist():
+                runs[i].shared_s["refine_s"] += (time.perf_counter() - t0) / len(rows)
+        _repair(runs, off, spans, np.unique(who).tolist())
     return refined
 
 
@@ -368,10 +384,12 @@ def _evaluate(runs: Sequence[GA], X: Array, bounds: NDArray[np.intp]) -> Array:
 
 
 def _survive(runs: Sequence[GA], off: Array, off_costs: Array, spans: list[slice], new: NDArray[np.intp],
-             values: Array, refined: NDArray[np.bool_], starts: NDArray[np.intp]) -> None:  # fmt: skip
+             values: Array, refined: NDArray[np.bool_], starts: NDArray[np.intp], owner: NDArray[np.intp]) -> None:  # fmt: skip
     """The rest of the generation for every run: count its evaluations, keep its survivors
     (runs with the same strategy and shapes at once), remember its best, decide whether it stops."""
-    bounds = np.searchsorted(new, starts)
+    R = len(runs)
+    evaluated = np.bincount(owner[new], minlength=R) + np.bincount(owner[refined], minlength=R)  # a step evaluates its residual once
+    nonfinite = np.bincount(owner[new[~np.isfinite(values)]], minlength=R)
     groups: dict[tuple, list[int]] = {}
     for i, ga in enumerate(runs):
         lam, mu = spans[i].stop - spans[i].start, ga.pop_conf.mu
@@ -386,13 +404,14 @@ def _survive(runs: Sequence[GA], off: Array, off_costs: Array, spans: list[slice
         costs = np.take_along_axis(pool, keep, axis=1)
         finite = np.where(np.isfinite(costs), costs, np.inf)
         best = np.argmin(finite, axis=1)  # the first best: the current genome, and the one offered
+        bests = finite[np.arange(len(group)), best].tolist()
         for g, i in enumerate(group):
-            ga, vals = runs[i], values[bounds[i] : bounds[i + 1]]
-            ga.nevals += len(vals) + int(refined[spans[i]].sum())  # a pseudo-inverse step evaluates its residual once
-            ga.n_nonfinite = len(vals) - int(np.isfinite(vals).sum())
+            ga = runs[i]
+            ga.nevals += int(evaluated[i])
+            ga.n_nonfinite = int(nonfinite[i])
             ga.pop, ga.costs, ga.gen, ga._best = pop[g], costs[g], ga.gen + 1, int(best[g])
-            if finite[g, best[g]] < ga.best_cost:
-                ga.best_x, ga.best_cost = np.array(pop[g, best[g]], dtype=float), float(costs[g, best[g]])
+            if bests[g] < ga.best_cost:
+                ga.best_x, ga.best_cost = np.array(pop[g, best[g]], dtype=float), bests[g]
             ga._update_stagnation()
             ga.stop_reason = ga._stop_reason()
 
