@@ -32,6 +32,7 @@ class ZrpGaLauncher(Launcher):
 
     def __init__(self, **settings: Any) -> None:
         self.settings = ZrpGaLauncherConf(**{k: v for k, v in settings.items() if k != "_target_"})
+        self.settings.check()
         self.config: Optional[DictConfig] = None
         self.task_function: Optional[TaskFunction] = None
         self.hydra_context: Optional[HydraContext] = None
@@ -45,9 +46,19 @@ class ZrpGaLauncher(Launcher):
             hydra_context.config_loader, self.settings.cached_composition
         )
         self.config, self.task_function, self.hydra_context = config, task_function, hydra_context
-        self.pool = _workers.Pool(self.settings, hydra_context, task_function, config)
+        if self.local:
+            self.pool = _workers.Pool(self.settings, hydra_context, task_function, config)
+
+    @property
+    def local(self) -> bool:
+        """On this machine's workers; else in batches, a cluster job each (``executor``: slurm, ray; ``_remote.py``)."""
+        return str(getattr(self.settings.executor, "value", self.settings.executor)) == "local"
 
     def launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> Sequence[JobReturn]:
-        from . import _workers
+        if self.local:
+            from . import _workers
 
-        return _workers.launch(self, job_overrides, initial_job_idx)
+            return _workers.launch(self, job_overrides, initial_job_idx)
+        from . import _remote
+
+        return _remote.launch(self, job_overrides, initial_job_idx)
