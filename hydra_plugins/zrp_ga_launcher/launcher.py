@@ -32,7 +32,6 @@ class ZrpGaLauncher(Launcher):
 
     def __init__(self, **settings: Any) -> None:
         self.settings = ZrpGaLauncherConf(**{k: v for k, v in settings.items() if k != "_target_"})
-        self.settings.check()
         self.config: Optional[DictConfig] = None
         self.task_function: Optional[TaskFunction] = None
         self.hydra_context: Optional[HydraContext] = None
@@ -41,6 +40,7 @@ class ZrpGaLauncher(Launcher):
     def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig) -> None:
         from . import _compose, _workers
 
+        self.settings.check()  # here, not in __init__: Hydra's instantiate would wrap its one line in its own
         # The sweeper checks every job with this same loader before launching: one cache for both.
         hydra_context.config_loader = _compose.ComposingLoader.wrap(
             hydra_context.config_loader, self.settings.cached_composition
