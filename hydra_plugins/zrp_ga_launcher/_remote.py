@@ -15,7 +15,7 @@ batch: they get a ``failed`` line in the manifest, but for the runs it finished 
 ``done`` line stays). A sweep run again into the same ``hydra.sweep.dir`` continues: the run
 layer keeps the finished runs and resumes the checkpointed ones. At Ctrl-C the cluster jobs not
 ended are cancelled (SLURM sends them SIGTERM, Ray a KeyboardInterrupt: the runs save their
-checkpoints).
+checkpoints); a SLURM job near its time limit (submitit's SIGUSR2) or cancelled stops the same way.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import dataclasses
 import logging
 import math
 import pickle
+import signal
 import zlib
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -63,12 +64,16 @@ class _Start:
     hydra_context: HydraContext  # without its config loader (the jobs come composed)
     task_function: Any  # the function, or (module, qualified name) when it cannot be pickled
     singleton_state: Any  # Hydra's singletons, as _workers passes them to spawned workers
+    stop_at_sigterm: bool = False  # SIGTERM, SIGUSR2 (scancel, the time limit near) as Ctrl-C: the run saves its checkpoint
 
 
 def run_remote(start: _Start, jobs: list[tuple[int, bytes]]) -> list[bytes]:
     """A cluster job: run ``jobs`` ((job number, pickled config compressed with zlib) pairs); their pickled returns."""
     from . import _batch
 
+    if start.stop_at_sigterm:  # in place of submitit's handlers, which would let the batch's next runs start
+        for sig in (signal.SIGTERM, signal.SIGUSR2):
+            signal.signal(sig, _interrupt)
     state = Singleton.get_state()
     state["instances"] = start.singleton_state
     Singleton.set_state(state)
@@ -76,6 +81,10 @@ def run_remote(start: _Start, jobs: list[tuple[int, bytes]]) -> list[bytes]:
     task_function = _workers._task_function(start.task_function)
     returns = _batch.run_batch([(idx, zlib.decompress(data)) for idx, data in jobs], start.hydra_context, task_function)
     return [_workers._dump_return(idx, ret) for (idx, _), ret in zip(jobs, returns)]
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
 
 
 # --- the executors --------------------------------------------------------------------------------------
@@ -97,6 +106,7 @@ class _Slurm:
         self.jobs: list[Any] = []
 
     def submit(self, start: _Start, payload: list[list[tuple[int, bytes]]]) -> None:
+        start = dataclasses.replace(start, stop_at_sigterm=True)
         self.jobs = self.executor.map_array(run_remote, [start] * len(payload), payload)
         log.info(f"submitted {len(self.jobs)} cluster jobs ({self.executor.cluster}): {', '.join(j.job_id for j in self.jobs[:3])}"
                  f"{', ...' if len(self.jobs) > 3 else ''}")  # fmt: skip
