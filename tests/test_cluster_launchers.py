@@ -188,33 +188,67 @@ def test_ray_runs_a_batch_per_task(tmp_path, local_sweep):
     assert OmegaConf.load(sweep / "0/.hydra/hydra.yaml").hydra.launcher.executor == "ray"
 
 
-@pytest.mark.slow
-def test_a_slurm_job_stopped_by_sigterm_saves_its_run_and_the_sweep_continues(tmp_path):
-    """SIGTERM (scancel, the time limit) to a cluster job: its running run saves its checkpoint,
-    as at Ctrl-C; the same command again resumes it to the end."""
-    pytest.importorskip("submitit")
-    sweep = tmp_path / "sweep"
-    args = ["-m", "seed=0,1", "problem.n_validation=5", "population.generations=3000", "checkpoint_every=50",
-            "hydra/launcher=slurm", "hydra.launcher.cluster=local", f"hydra.sweep.dir={sweep}"]  # fmt: skip
+def _stop_while_running(sweep: Path, args: list[str], stop) -> subprocess.CompletedProcess:
+    """Run the sweep; ``stop(driver's process id)`` once run 0 is past its first checkpoint."""
     proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline, stopped = time.monotonic() + 600, None
-    while stopped is None and time.monotonic() < deadline and proc.poll() is None:
+    deadline, stopped = time.monotonic() + 600, False
+    while not stopped and time.monotonic() < deadline and proc.poll() is None:
         rows = sweep / "0" / "convergence.csv"
-        if rows.exists() and len(rows.read_text().splitlines()) > 60:  # past its first checkpoint
-            (job,) = [j for j in _cluster_jobs(sweep) if j.name.isdigit()]
-            stopped = job.name
-            os.kill(int(stopped), signal.SIGTERM)
+        if rows.exists() and len(rows.read_text().splitlines()) > 60:
+            stop(proc.pid)
+            stopped = True
         time.sleep(0.05)
-    _, err = proc.communicate(timeout=900)
-    assert stopped is not None, err[-2000:]
+    out, err = proc.communicate(timeout=900)
+    assert stopped, err[-2000:]
+    for _ in range(100):  # the cluster job may still be saving the run
+        if json.loads((sweep / "0" / "status.json").read_text())["status"] != "running":
+            break
+        time.sleep(0.1)
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+def _resumed_to_the_end(sweep: Path, args: list[str]) -> None:
+    """Run 0 stopped with its checkpoint, run 1 not started; the same command again resumes run 0."""
     assert json.loads((sweep / "0" / "status.json").read_text())["status"] == "interrupted"
     assert (sweep / "0" / "checkpoint.npz").exists() and not (sweep / "1" / "convergence.csv").exists()
-    m = read_manifest(sweep)
-    assert list(m["status"]) == ["failed", "failed"] and all(f"cluster job {stopped} failed" in e for e in m["error"])
     again = _zrp_ga(*args, timeout=900)
     assert again.returncode == 0, again.stderr[-2000:]
     assert "continues from its checkpoint" in (sweep / "0" / "zrp-ga.log").read_text()
     assert list(read_manifest(sweep)["status"]) == ["done", "done"]
     for d in ("0", "1"):
         gens = pd.read_csv(sweep / d / "convergence.csv")["gen"]
-        assert list(gens) == list(range(3001)), d  # every generation once: resumed, not started again
+        assert list(gens) == list(range(3001)), d  # every generation once
+
+
+LONG = ["-m", "seed=0,1", "problem.n_validation=5", "population.generations=3000", "checkpoint_every=50",
+        "hydra/launcher=slurm", "hydra.launcher.cluster=local"]  # fmt: skip
+
+
+@pytest.mark.slow
+def test_a_slurm_job_stopped_by_sigterm_saves_its_run_and_the_sweep_continues(tmp_path):
+    """SIGTERM (scancel, the time limit) to a cluster job: its running run saves its checkpoint,
+    as at Ctrl-C; the same command again resumes it to the end."""
+    pytest.importorskip("submitit")
+    sweep = tmp_path / "sweep"
+    args = [*LONG, f"hydra.sweep.dir={sweep}"]
+    job = []
+
+    def stop(driver: int) -> None:
+        (folder,) = [j for j in _cluster_jobs(sweep) if j.name.isdigit()]
+        job.append(folder.name)
+        os.kill(int(folder.name), signal.SIGTERM)
+
+    _stop_while_running(sweep, args, stop)
+    m = read_manifest(sweep)
+    assert list(m["status"]) == ["failed", "failed"] and all(f"cluster job {job[0]} failed" in e for e in m["error"])
+    _resumed_to_the_end(sweep, args)
+
+
+@pytest.mark.slow
+def test_ctrl_c_cancels_the_cluster_jobs_whose_runs_save_their_checkpoints(tmp_path):
+    pytest.importorskip("submitit")
+    sweep = tmp_path / "sweep"
+    args = [*LONG, f"hydra.sweep.dir={sweep}"]
+    proc = _stop_while_running(sweep, args, lambda driver: os.kill(driver, signal.SIGINT))  # the driver alone
+    assert proc.returncode == 130 and f"continue with the same command and hydra.sweep.dir={sweep}" in proc.stderr, proc.stderr
+    _resumed_to_the_end(sweep, args)

@@ -20,6 +20,7 @@ checkpoints); a SLURM job near its time limit (submitit's SIGUSR2) or cancelled 
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import logging
 import math
@@ -30,6 +31,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+from hydra.core.hydra_config import HydraConfig
 from hydra.core.singleton import Singleton
 from hydra.core.utils import JobReturn, JobStatus, configure_log, filter_overrides, setup_globals
 from hydra.types import HydraContext
@@ -196,6 +198,7 @@ def launch(launcher: Any, job_overrides: Sequence[Sequence[str]], initial_job_id
     """Run the jobs in batches, a cluster job each (see the module docstring); their returns in job order."""
     setup_globals()
     configure_log(launcher.config.hydra.hydra_logging, launcher.config.hydra.verbose)
+    HydraConfig.instance().set_config(copy.deepcopy(launcher.config))  # the sweep's: at Ctrl-C the console script names it
     settings = launcher.settings
     sweep = Path(str(launcher.config.hydra.sweep.dir))
     sweep.mkdir(parents=True, exist_ok=True)
