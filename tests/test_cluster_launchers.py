@@ -32,6 +32,21 @@ def _cluster_jobs(sweep: Path) -> list[Path]:
     return sorted(p for p in (sweep / ".submitit").iterdir() if p.name != "%j")
 
 
+def _kill_job(job: str) -> None:
+    """SIGKILL to a local cluster job (its id is its controlling process's id) and the task it
+    started, as a node lost or out of memory takes them."""
+    pid = int(job)
+    try:
+        children = [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    except OSError:
+        children = []
+    for p in [*children, pid]:
+        try:
+            os.kill(p, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
 def _summary(run: Path) -> dict:
     s = json.loads((run / "summary.json").read_text())
     for key in ("wall_s", "versions"):
@@ -159,8 +174,8 @@ def test_a_failed_cluster_job_fails_its_batch_and_the_sweep_continues(tmp_path, 
     while killed is None and time.monotonic() < deadline and proc.poll() is None:
         started = [j for j in _cluster_jobs(sweep) if j.name.isdigit()] if (sweep / ".submitit").exists() else []
         if started:
-            killed = started[0].name  # the local cluster's job id is its process id
-            os.kill(int(killed), signal.SIGKILL)
+            killed = started[0].name
+            _kill_job(killed)
         time.sleep(0.02)
     _, err = proc.communicate(timeout=900)
     assert killed is not None, err[-2000:]
@@ -186,6 +201,35 @@ def test_ray_runs_a_batch_per_task(tmp_path, local_sweep):
     assert "submitted 3 Ray tasks" in proc.stdout + proc.stderr  # ceil(5 / 2)
     _same_runs(sweep, local_sweep)
     assert OmegaConf.load(sweep / "0/.hydra/hydra.yaml").hydra.launcher.executor == "ray"
+
+
+@pytest.mark.slow
+def test_the_runs_a_failed_cluster_job_finished_stay_done(tmp_path):
+    """A cluster job killed after the first run of its batch ended: that run stays done, kept
+    when the sweep runs again; the others fail, and run again."""
+    pytest.importorskip("submitit")
+    sweep = tmp_path / "sweep"
+    args = ["-m", "seed=0,1,2", "problem.n_validation=5", "population.generations=1500", "hydra/launcher=slurm",
+            "hydra.launcher.cluster=local", f"hydra.sweep.dir={sweep}"]  # fmt: skip
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline, killed = time.monotonic() + 600, None
+    while killed is None and time.monotonic() < deadline and proc.poll() is None:
+        if (sweep / "manifest.jsonl").exists() and '"job": 0' in (text := (sweep / "manifest.jsonl").read_text()) and '"done"' in text:
+            (job,) = [j for j in _cluster_jobs(sweep) if j.name.isdigit()]
+            killed = job.name
+            _kill_job(killed)
+        time.sleep(0.01)
+    _, err = proc.communicate(timeout=900)
+    assert killed is not None, err[-2000:]
+    m = read_manifest(sweep)
+    assert list(m["status"]) == ["done", "failed", "failed"], m
+    assert all(f"cluster job {killed} failed" in e for e in m["error"][1:])
+    before = (sweep / "0" / "convergence.csv").read_bytes()
+    again = _zrp_ga(*args, timeout=900)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert list(read_manifest(sweep)["status"]) == ["done"] * 3
+    assert "finished before; kept" in (sweep / "0" / "zrp-ga.log").read_text()
+    assert (sweep / "0" / "convergence.csv").read_bytes() == before
 
 
 def _stop_while_running(sweep: Path, args: list[str], stop) -> subprocess.CompletedProcess:

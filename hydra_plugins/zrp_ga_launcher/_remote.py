@@ -11,8 +11,8 @@ its directory, ``.hydra`` record, log file and manifest line, as with the local 
 sends the returns back, without their configs, as ``_workers`` does.
 
 A cluster job that fails (killed, out of time or memory, its node lost) fails the runs of its
-batch: they get a ``failed`` line in the manifest, but for the runs it finished before (their
-``done`` line stays). A sweep run again into the same ``hydra.sweep.dir`` continues: the run
+batch that had not finished, each with a ``failed`` line in the manifest; those it finished
+keep their ``done`` line and return their objective. A sweep run again into the same ``hydra.sweep.dir`` continues: the run
 layer keeps the finished runs and resumes the checkpointed ones. At Ctrl-C the cluster jobs not
 ended are cancelled (SLURM sends them SIGTERM, Ray a KeyboardInterrupt: the runs save their
 checkpoints); a SLURM job near its time limit (submitit's SIGUSR2) or cancelled stops the same way.
@@ -35,6 +35,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.core.singleton import Singleton
 from hydra.core.utils import JobReturn, JobStatus, configure_log, filter_overrides, setup_globals
 from hydra.types import HydraContext
+from omegaconf import DictConfig, open_dict
 
 from . import _workers
 
@@ -187,10 +188,8 @@ def _last_line(exc: BaseException) -> str:
 
 # --- the driver ---------------------------------------------------------------------------------------
 def _batch_key(cfg: Any) -> Any:
-    try:
-        from zrp_ga.run.execute import batch_key
-    except ImportError:
-        return None
+    from zrp_ga.run.execute import batch_key
+
     return batch_key(cfg)
 
 
@@ -203,11 +202,12 @@ def launch(launcher: Any, job_overrides: Sequence[Sequence[str]], initial_job_id
     sweep = Path(str(launcher.config.hydra.sweep.dir))
     sweep.mkdir(parents=True, exist_ok=True)
     jobs = [(initial_job_idx + k, list(o)) for k, o in enumerate(job_overrides)]
-    keys, data = [], []
+    keys, data, places = [], [], []
     for idx, overrides in jobs:
         log.info(f"\t#{idx} : {' '.join(filter_overrides(overrides))}")
         cfg = launcher.hydra_context.config_loader.load_sweep_config(launcher.config, overrides)
         keys.append(_batch_key(cfg))
+        places.append(_place(idx, cfg))
         data.append(zlib.compress(pickle.dumps(cfg)))  # about 5 kB a job rather than 22 kB: 10,000 jobs in 50 MB
     groups = batches(keys, settings.runs_per_job)
     payload = [[(jobs[i][0], data[i]) for i in group] for group in groups]
@@ -221,7 +221,7 @@ def launch(launcher: Any, job_overrides: Sequence[Sequence[str]], initial_job_id
         executor.submit(start, payload)
         for k, result in executor.results():
             if isinstance(result, BaseException):
-                _fail(launcher, sweep, [jobs[i] for i in groups[k]], result, returns)
+                _fail(sweep, [(*jobs[i], places[i]) for i in groups[k]], result, returns)
             else:
                 for data in result:
                     idx, returns[idx] = pickle.loads(data)
@@ -241,26 +241,40 @@ def _name(executor: Any) -> str:
     return str(getattr(executor, "value", executor))
 
 
-def _fail(launcher: Any, sweep: Path, jobs: list[tuple[int, list[str]]], error: Exception, returns: dict) -> None:
-    """The runs of a failed cluster job: failed returns; a ``failed`` manifest line for those it did not finish."""
-    log.error(str(error))
-    try:
-        from zrp_ga.run import directory
+def _place(idx: int, cfg: DictConfig) -> Any:
+    """The job's place in the sweep (``zrp_ga.run.directory.Sweep``), its number set in ``cfg`` as ``run_job`` sets it."""
+    from zrp_ga.run import directory
 
-        states = directory.job_states(sweep) if (sweep / directory.MANIFEST).exists() else []
-        done = {r["job"] for r in states if r["status"] == "done"}
-    except ImportError:
-        done = set()
-    for idx, overrides in jobs:
-        returns[idx] = JobReturn(overrides=overrides, status=JobStatus.FAILED)
-        returns[idx].return_value = error
-        if idx not in done:
-            _workers._record_failure(launcher, idx, overrides, error)
+    with open_dict(cfg):
+        cfg.hydra.job.id, cfg.hydra.job.num = str(idx), idx
+    hc = cfg.hydra
+    return directory.Sweep(Path(hc.sweep.dir), idx, tuple(hc.overrides.task), str(hc.sweep.subdir))
+
+
+def _fail(sweep: Path, jobs: list[tuple[int, list[str], Any]], error: Exception, returns: dict) -> None:
+    """The runs of a failed cluster job (``(number, overrides, place)``): those it had finished
+    completed with the objective in their summary, as the run layer returns a kept run's; the
+    others failed, with a ``failed`` manifest line."""
+    from zrp_ga.run import directory
+
+    log.error(str(error))
+    states = {int(r["job"]): r["status"] for r in directory.job_states(sweep)} if (sweep / directory.MANIFEST).exists() else {}
+    for idx, overrides, place in jobs:
+        ret = returns[idx] = JobReturn(overrides=overrides, status=JobStatus.FAILED)
+        ret.return_value = error
+        out = place.dir / place.subdir
+        if states.get(idx) == "done" and directory.status(out) == "done":
+            try:
+                written = directory.read_summary(out)
+                value = written.get("objective", written.get("final_cost"))
+                ret.status, ret.return_value = JobStatus.COMPLETED, float("nan") if value is None else float(value)
+                continue
+            except (OSError, ValueError, TypeError):
+                pass
+        directory.record(place, "failed", f"{type(error).__name__}: {error}")
 
 
 def _write_table(sweep: Path) -> None:
-    try:
-        from zrp_ga.run import directory
-    except ImportError:
-        return
+    from zrp_ga.run import directory
+
     directory.write_table(sweep)
