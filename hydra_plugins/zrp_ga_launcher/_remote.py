@@ -109,7 +109,7 @@ class _Slurm:
         self.jobs: list[Any] = []
 
     def submit(self, start: _Start, payload: list[list[tuple[int, bytes]]]) -> None:
-        start = dataclasses.replace(start, stop_at_sigterm=True)
+        start = dataclasses.replace(start, stop_at_sigterm=self.executor.cluster != "debug")  # debug: in this process
         self.jobs = self.executor.map_array(run_remote, [start] * len(payload), payload)
         log.info(f"submitted {len(self.jobs)} cluster jobs ({self.executor.cluster}): {', '.join(j.job_id for j in self.jobs[:3])}"
                  f"{', ...' if len(self.jobs) > 3 else ''}")  # fmt: skip
