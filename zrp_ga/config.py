@@ -355,6 +355,12 @@ class Config:
 
 
 # --- zrp_ga's Hydra launcher (hydra/launcher=zrp_ga; hydra_plugins/zrp_ga_launcher) --------------
+class Executor(enum.Enum):
+    local = "local"  # this machine's cores: long-lived worker processes
+    slurm = "slurm"  # a SLURM cluster through submitit, a batch of runs per cluster job
+    ray = "ray"  # a Ray cluster, a batch of runs per task
+
+
 @dataclasses.dataclass
 class ZrpGaLauncherConf:
     """The settings of zrp_ga's launcher (``hydra.launcher.*``)."""
@@ -367,6 +373,25 @@ class ZrpGaLauncherConf:
     warm_up: Optional[str] = "zrp_ga.run.execute.warm_up"  # called with the sweep's config before the first job
     table_every_s: float = 1.0  # manifest.csv rewritten at most this often (and at the end)
     lockstep: bool = True  # GA jobs on one problem instance with one population shape evolved together (zrp_ga.run.execute.sweep_batch)
+    # Beyond this machine (hydra_plugins/zrp_ga_launcher/_remote.py): the jobs in batches, a batch per cluster job.
+    executor: Executor = Executor.local
+    runs_per_job: int = 300  # jobs of the sweep run one after another in one cluster job (those of one batch_key together)
+    cpus_per_task: int = 1  # cores of a cluster job (SLURM's cpus_per_task; Ray's num_cpus of a task)
+    # SLURM, through submitit:
+    cluster: Optional[str] = "slurm"  # submitit's AutoExecutor cluster: slurm; local or debug try it on this machine; null: SLURM where found
+    partition: Optional[str] = None
+    account: Optional[str] = None
+    timeout_min: int = 60  # of a cluster job: runs_per_job runs
+    mem_gb: float = 2.0
+    array_parallelism: int = 64  # cluster jobs of the sweep running at a time
+    submitit_folder: str = "${hydra.sweep.dir}/.submitit/%j"  # submitit's job files and logs
+    # Ray:
+    ray_address: Optional[str] = None  # a running cluster (auto: the one this node belongs to); null: a Ray started on this machine
+    ray_num_cpus: Optional[int] = None  # cores of the Ray started on this machine (null: all)
+
+    def check(self, key: str = "hydra.launcher") -> None:
+        _require(self.runs_per_job >= 1, f"{key}.runs_per_job", "at least 1", self.runs_per_job)
+        _require(self.cpus_per_task >= 1, f"{key}.cpus_per_task", "at least 1", self.cpus_per_task)
 
 
 # Stored at the root of the config tree, not in a group, so that they are no options of their own

@@ -40,14 +40,25 @@ class ZrpGaLauncher(Launcher):
     def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig) -> None:
         from . import _compose, _workers
 
+        self.settings.check()  # here, not in __init__: Hydra's instantiate would wrap its one line in its own
         # The sweeper checks every job with this same loader before launching: one cache for both.
         hydra_context.config_loader = _compose.ComposingLoader.wrap(
             hydra_context.config_loader, self.settings.cached_composition
         )
         self.config, self.task_function, self.hydra_context = config, task_function, hydra_context
-        self.pool = _workers.Pool(self.settings, hydra_context, task_function, config)
+        if self.local:
+            self.pool = _workers.Pool(self.settings, hydra_context, task_function, config)
+
+    @property
+    def local(self) -> bool:
+        """On this machine's workers; else in batches, a cluster job each (``executor``: slurm, ray; ``_remote.py``)."""
+        return str(getattr(self.settings.executor, "value", self.settings.executor)) == "local"
 
     def launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> Sequence[JobReturn]:
-        from . import _workers
+        if self.local:
+            from . import _workers
 
-        return _workers.launch(self, job_overrides, initial_job_idx)
+            return _workers.launch(self, job_overrides, initial_job_idx)
+        from . import _remote
+
+        return _remote.launch(self, job_overrides, initial_job_idx)
