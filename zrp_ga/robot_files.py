@@ -327,13 +327,15 @@ def dh_to_yaml(
         lines.append(f"# Rows with beta are Hayati rows (nearly parallel axes): A = {link[table.convention]}")
     head = {"name": table.name, "convention": table.convention, "units": {"length": length, "angle": angle}}
     lines += [records.yaml_text(head, sort_keys=False, default_flow_style=None).rstrip(), "joints:"]
+    a, alpha, d, theta, beta = _short([table.a / L, table.alpha / A, table.d / L, table.theta / A, table.beta / A])
+    if table.limits is not None:
+        limits = _short(np.asarray(table.limits) / np.array([[A if kind == "R" else L] for kind in table.joint_types]))
     for i, kind in enumerate(table.joint_types):
-        row = {"name": names[i], "type": kind, "a": _short(table.a[i] / L), "alpha": _short(table.alpha[i] / A),
-               "d": _short(table.d[i] / L), "theta": _short(table.theta[i] / A)}
+        row = {"name": names[i], "type": kind, "a": a[i], "alpha": alpha[i], "d": d[i], "theta": theta[i]}
         if table.beta[i]:
-            row["beta"] = _short(table.beta[i] / A)
+            row["beta"] = beta[i]
         if table.limits is not None:
-            row["limits"] = _short(np.asarray(table.limits[i]) / (A if kind == "R" else L))
+            row["limits"] = limits[i]
         line = "  - " + records.yaml_text(row, default_flow_style=True, sort_keys=False, width=10**9).strip()
         lines.append(line + ("  # Hayati row" if table.beta[i] else ""))
     for key in ("base", "tool"):
@@ -349,11 +351,14 @@ def dh_to_yaml(
 def _short(x: ArrayLike) -> float | list:
     """x (a number or array) as the floats of shortest decimal form within 8 units in the last place."""
     x = np.asarray(x, dtype=float)
-    steps = np.arange(-8, 9)
-    near = x[..., None] + np.spacing(x)[..., None] * steps
-    digits = np.vectorize(lambda v: len(repr(float(v))))(near) + np.abs(steps) / 100  # ties: the nearest
-    best = np.take_along_axis(near, np.argmin(digits, axis=-1)[..., None], axis=-1)[..., 0] + 0.0
-    return best.tolist()
+    near = x[..., None] + np.spacing(x)[..., None] * _STEPS
+    # the first candidate with the fewest characters, ties to the nearest (the smaller step first)
+    best = [min(zip(row, _TIE), key=lambda c: len(repr(c[0])) + c[1])[0] for row in near.reshape(-1, _STEPS.size).tolist()]
+    return (np.array(best).reshape(x.shape) + 0.0).tolist()
+
+
+_STEPS = np.arange(-8, 9)  # the candidates of _short: within 8 units in the last place
+_TIE = (np.abs(_STEPS) / 100).tolist()  # added to a candidate's length: ties go to the nearest
 
 
 # --- ZRP YAML ----------------------------------------------------------------------------------
@@ -386,13 +391,23 @@ def write_robot_files(
     ``quaternion_xyzw`` (x, y, z, w: scalar last). The DH and ZRP files hold the arm alone.
     Returns {"urdf", "dh", "mdh", "zrp", "frames"} -> path.
     """
+    return write_all(robot, out_dir, stem, base, tool)[0]
+
+
+def write_all(
+    robot: ZRPRobot, out_dir: str | Path, stem: str = "calibrated_robot",
+    base: ArrayLike | None = None, tool: ArrayLike | None = None,
+) -> tuple[dict[str, Path], dict[str, DHMismatch]]:
+    """:func:`write_robot_files`, and the mismatch of each DH table written ({"dh", "mdh"}):
+    each table is computed once (a run of a sweep writes its files in milliseconds)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"urdf": out / f"{stem}.urdf", "dh": out / f"{stem}_dh.yaml", "mdh": out / f"{stem}_mdh.yaml",
              "zrp": out / f"{stem}.yaml", "frames": out / f"{stem}_frames.yaml"}
     to_urdf(robot, paths["urdf"], base, tool)
+    mismatches = {}
     for convention, title in (("dh", "Standard DH"), ("mdh", "Modified DH")):
-        table, mismatch = to_dh(robot, convention)
+        table, mismatch = mismatches[convention] = to_dh(robot, convention)
         header = f"{title} table of {robot.name} (zrp_ga.robot_files.to_dh): {mismatch}"
         dh_to_yaml(table, paths[convention], comment="\n".join([header, *mismatch.notes]))
         if table.beta.any():
@@ -408,7 +423,7 @@ def write_robot_files(
         "# quaternion_xyzw: x, y, z, w (scalar last, as scipy and ROS).\n"
     )
     paths["frames"].write_text(comment + records.yaml_text(frames, sort_keys=False, default_flow_style=None))
-    return paths
+    return paths, {k: m for k, (_, m) in mismatches.items()}
 
 
 def _frame_entry(T: Array) -> dict:
