@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from zrp_ga.fileio import replace
 from zrp_ga.files import regular_file
 
 
@@ -26,7 +27,7 @@ def save(path: str | Path, state: dict) -> None:
     try:
         with open(tmp, "wb") as f:
             np.savez(f, __json__=np.array(json.dumps(rest)), **arrays)
-        os.replace(tmp, path)
+        replace(tmp, path)
     except BaseException as exc:  # a full disk, a kill: the previous checkpoint stays, the temporary file goes
         tmp.unlink(missing_ok=True)
         if isinstance(exc, OSError) and not exc.filename:  # name the file the error is about

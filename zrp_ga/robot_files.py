@@ -352,13 +352,18 @@ def _short(x: ArrayLike) -> float | list:
     """x (a number or array) as the floats of shortest decimal form within 8 units in the last place."""
     x = np.asarray(x, dtype=float)
     near = x[..., None] + np.spacing(x)[..., None] * _STEPS
-    # the first candidate with the fewest characters, ties to the nearest (the smaller step first)
-    best = [min(zip(row, _TIE), key=lambda c: len(repr(c[0])) + c[1])[0] for row in near.reshape(-1, _STEPS.size).tolist()]
+    best = [_fewest_characters(row) for row in near.reshape(-1, _STEPS.size).tolist()]
     return (np.array(best).reshape(x.shape) + 0.0).tolist()
 
 
 _STEPS = np.arange(-8, 9)  # the candidates of _short: within 8 units in the last place
-_TIE = (np.abs(_STEPS) / 100).tolist()  # added to a candidate's length: ties go to the nearest
+_NEAREST_FIRST = sorted(range(_STEPS.size), key=lambda j: (abs(_STEPS[j]), j))  # ties: the nearer, then the smaller
+
+
+def _fewest_characters(candidates: list[float]) -> float:
+    lengths = list(map(len, map(repr, candidates)))
+    fewest = min(lengths)
+    return next(candidates[j] for j in _NEAREST_FIRST if lengths[j] == fewest)
 
 
 # --- ZRP YAML ----------------------------------------------------------------------------------
