@@ -22,7 +22,7 @@ import math
 import typing
 from typing import Any, Optional
 
-from omegaconf import MISSING, DictConfig
+from omegaconf import MISSING, DictConfig, ListConfig
 
 
 class ConfigError(ValueError):
@@ -428,6 +428,10 @@ def instantiate(node: DictConfig, key: str, **kwargs: Any) -> Any:
     from hydra.errors import InstantiationException
     from hydra.utils import instantiate as hydra_instantiate
 
+    direct = _direct(node)
+    if direct is not None:
+        target, settings = direct
+        return target(**settings, **kwargs)
     trusted = {"_execution_whitelist_": TRUSTED_TARGETS} if hydra_14() else {}
     try:
         return hydra_instantiate(node, _partial_=True, **trusted)(**kwargs)
@@ -436,6 +440,39 @@ def instantiate(node: DictConfig, key: str, **kwargs: Any) -> Any:
         if isinstance(cause, (ValueError, OSError)):
             raise cause from None
         raise ConfigError(f"{key}: {str(exc).splitlines()[0]}") from None
+
+
+_SPECIAL = ("_target_", "_recursive_", "_convert_", "_partial_", "_args_")
+
+
+def _direct(node: Any) -> tuple[Any, dict] | None:
+    """The target and settings of a node that :func:`instantiate` calls itself, as Hydra would
+    (a sweep builds an optimiser per run: Hydra's deep copy and resolution of the config cost
+    more than the rest of the run's set-up): a zrp_ga target given its settings' values, where
+    Hydra would hand it the same values (no nested objects to build: ``_recursive_: false``, or
+    plain values only). None: Hydra builds it."""
+    if not isinstance(node, DictConfig):
+        return None
+    name = node.get("_target_")
+    if not isinstance(name, str) or not name.startswith("zrp_ga.") or any(k in node for k in _SPECIAL[2:]):
+        return None
+    settings = {str(k): node[k] for k in node if k not in _SPECIAL}
+    if node.get("_recursive_", True) is not False and any(isinstance(v, DictConfig | ListConfig) for v in settings.values()):
+        return None
+    target = _target(name)
+    return None if target is None else (target, settings)
+
+
+@functools.cache
+def _target(name: str) -> Any:
+    """The object ``module.attr`` names (None if it cannot be imported: Hydra then says why)."""
+    import importlib
+
+    module, _, attr = name.rpartition(".")
+    try:
+        return getattr(importlib.import_module(module), attr)
+    except (ImportError, AttributeError):
+        return None
 
 
 # --- what differs between the Hydra releases zrp_ga supports (hydra-core 1.3.2 - 1.4) -------------
