@@ -43,7 +43,9 @@ the line (XML) or the joint, and what is wrong.
 
 from __future__ import annotations
 
+import functools
 import logging
+import math
 from pathlib import Path
 from typing import NamedTuple
 
@@ -331,21 +333,38 @@ def dh_to_yaml(
     if table.limits is not None:
         limits = _short(np.asarray(table.limits) / np.array([[A if kind == "R" else L] for kind in table.joint_types]))
     for i, kind in enumerate(table.joint_types):
-        row = {"name": names[i], "type": kind, "a": a[i], "alpha": alpha[i], "d": d[i], "theta": theta[i]}
+        row = [_flow_text("name", names[i]), _flow_text("type", kind)]
+        row += [f"{k}: {_yaml_float(v)}" for k, v in (("a", a[i]), ("alpha", alpha[i]), ("d", d[i]), ("theta", theta[i]))]
         if table.beta[i]:
-            row["beta"] = beta[i]
+            row.append(f"beta: {_yaml_float(beta[i])}")
         if table.limits is not None:
-            row["limits"] = limits[i]
-        line = "  - " + records.yaml_text(row, default_flow_style=True, sort_keys=False, width=10**9).strip()
-        lines.append(line + ("  # Hayati row" if table.beta[i] else ""))
-    for key in ("base", "tool"):
-        T = getattr(table, key)
-        pose = {"xyz": _short(T[:3, 3] / L), "rpy": _short(so3.rpy(T[:3, :3]) / A)}
-        lines.append(records.yaml_text({key: pose}, sort_keys=False, default_flow_style=None).rstrip())
+            row.append(f"limits: [{', '.join(map(_yaml_float, limits[i]))}]")
+        lines.append("  - {" + ", ".join(row) + "}" + ("  # Hayati row" if table.beta[i] else ""))
+    poses = {key: {"xyz": _short(T[:3, 3] / L), "rpy": _short(so3.rpy(T[:3, :3]) / A)}
+             for key, T in (("base", table.base), ("tool", table.tool))}  # fmt: skip
+    lines.append(records.yaml_text(poses, sort_keys=False, default_flow_style=None).rstrip())
     text = "\n".join(lines) + "\n"
     if path is not None:
         Path(path).write_text(text)
     return text
+
+
+# A joint row is written as PyYAML writes it (a flow mapping on one line), without PyYAML for the
+# numbers: a run writes two tables at its end, and PyYAML takes most of their time.
+@functools.lru_cache(maxsize=1024)
+def _flow_text(key: str, value: str) -> str:
+    """``key: value`` as an entry of a flow mapping, quoted as PyYAML quotes it."""
+    return records.yaml_text({key: value}, default_flow_style=True, width=10**9).strip()[1:-1]
+
+
+def _yaml_float(x: float) -> str:
+    """A float as PyYAML writes it (``yaml.representer.SafeRepresenter.represent_float``)."""
+    if x != x:
+        return ".nan"
+    if x in (math.inf, -math.inf):
+        return ".inf" if x > 0 else "-.inf"
+    text = repr(x).lower()
+    return text.replace("e", ".0e", 1) if "." not in text and "e" in text else text
 
 
 def _short(x: ArrayLike) -> float | list:
