@@ -240,7 +240,7 @@ def write(out: Path, task: Task, result: Result, summary: dict, x: np.ndarray) -
             truth = error_model.canonical(p.layout, p.nominal, truth)
         params = records.params_by_joint(p.layout, x, truth)
     records.write_csv(out / directory.BEST_PARAMS, params)
-    records.write_csv(out / directory.INITIAL_POPULATION, records.population_table(p.names, result.initial_x, result.initial_costs))
+    records.write_population(out / directory.INITIAL_POPULATION, p.names, result.initial_x, result.initial_costs)
     task.write(out, x)
     summary["calibrated_robot"] = write_robot(out, task, x)
     records.write_json(out / directory.SUMMARY, summary)
