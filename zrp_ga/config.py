@@ -458,17 +458,17 @@ def _direct(node: Any, root: DictConfig | None) -> tuple[Any, dict] | None:
 
     if not isinstance(node, DictConfig):
         return None
-    name = node.get("_target_")
-    if not isinstance(name, str) or not name.startswith("zrp_ga.") or any(k in node for k in _SPECIAL[2:]):
-        return None
     raw = OmegaConf.to_container(node, resolve=False)
+    name = raw.get("_target_")
+    if not isinstance(name, str) or not name.startswith("zrp_ga.") or any(k in raw for k in _SPECIAL[2:]):
+        return None
     settings = {}
     for k, v in raw.items():
         if k in _SPECIAL:
             continue
         path = _reference(v, root)
         settings[str(k)] = node[k] if path is None else OmegaConf.select(root, path)
-    if node.get("_recursive_", True) is not False and any(isinstance(v, DictConfig | ListConfig) for v in settings.values()):
+    if raw.get("_recursive_", True) is not False and any(isinstance(v, DictConfig | ListConfig) for v in settings.values()):
         return None
     target = _target(name)
     return None if target is None else (target, settings)

@@ -73,9 +73,10 @@ def write_population(path, names: list[str], X: np.ndarray, costs: np.ndarray) -
         write_csv(path, population_table(names, X, costs))  # the general path
         return
     out = io.StringIO()
-    w = csv.writer(out)  # as csv.DictWriter writes the rows, floats as write_csv writes them (repr)
-    w.writerow(columns)
-    w.writerows([i + 1, *map(repr, x), repr(c)] for i, (x, c) in enumerate(zip(X.tolist(), costs.tolist())))
+    csv.writer(out).writerow(columns)  # the header as csv.DictWriter writes it (names quoted where they must be)
+    # each row as it writes it: floats as repr (write_csv), which needs no quoting; repr(list) joins them in C
+    out.writelines(f"{i + 1},{repr(x)[1:-1].replace(', ', ',')},{c!r}\r\n"
+                   for i, (x, c) in enumerate(zip(X.tolist(), costs.tolist())))  # fmt: skip
     with open(path, "w", newline="") as f:
         f.write(out.getvalue())
 

@@ -86,8 +86,11 @@ def build(cfg: DictConfig, out: Path | None, state: dict | None, choices: dict, 
     resolved = config.resolved(cfg)
     key = instance_key(cfg, resolved)
     if task is None:
-        with threadpool_limits(limits=1, user_api="blas"):  # the problem's SVDs: see zrp_ga.run.execute
-            task = cache.instance(key, lambda: _instance(cfg))
+        def limited() -> Any:
+            with threadpool_limits(limits=1, user_api="blas"):  # the problem's SVDs: see zrp_ga.run.execute
+                return _instance(cfg)
+
+        task = cache.instance(key, limited)  # built once per instance (threadpoolctl's set-up costs ms)
     algorithm = config.instantiate(cfg.algorithm, "algorithm", root=cfg)
     if state is not None and not algorithm.checkpointable:
         raise ConfigError(f"resume: {type(algorithm).__name__} runs keep no checkpoints")
