@@ -433,7 +433,7 @@ def instantiate(node: DictConfig, key: str, root: DictConfig | None = None, **kw
     direct = _direct(node, root)
     if direct is not None:
         target, settings = direct
-        return target(**settings, **kwargs)
+        return target(**{**settings, **kwargs})  # as functools.partial: the call's keywords win
     trusted = {"_execution_whitelist_": TRUSTED_TARGETS} if hydra_14() else {}
     try:
         return hydra_instantiate(node, _partial_=True, **trusted)(**kwargs)
