@@ -7,6 +7,7 @@ line."""
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import zipfile
@@ -14,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from zrp_ga.fileio import replace
 from zrp_ga.files import regular_file
 
 
@@ -24,9 +26,11 @@ def save(path: str | Path, state: dict) -> None:
     rest = {k: v for k, v in state.items() if not isinstance(v, np.ndarray)}
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
+        buffer = io.BytesIO()  # written in one piece: numpy's zip writer seeks back and forth
+        np.savez(buffer, __json__=np.array(json.dumps(rest)), **arrays)
         with open(tmp, "wb") as f:
-            np.savez(f, __json__=np.array(json.dumps(rest)), **arrays)
-        os.replace(tmp, path)
+            f.write(buffer.getbuffer())
+        replace(tmp, path)
     except BaseException as exc:  # a full disk, a kill: the previous checkpoint stays, the temporary file goes
         tmp.unlink(missing_ok=True)
         if isinstance(exc, OSError) and not exc.filename:  # name the file the error is about

@@ -19,10 +19,11 @@ import dataclasses
 import enum
 import functools
 import math
+import re
 import typing
 from typing import Any, Optional
 
-from omegaconf import MISSING, DictConfig
+from omegaconf import MISSING, DictConfig, ListConfig
 
 
 class ConfigError(ValueError):
@@ -445,14 +446,19 @@ def section(cls: type, node: Any, key: str) -> Any:
     return obj
 
 
-def instantiate(node: DictConfig, key: str, **kwargs: Any) -> Any:
+def instantiate(node: DictConfig, key: str, root: DictConfig | None = None, **kwargs: Any) -> Any:
     """``hydra.utils.instantiate(node)(**kwargs)`` with the user's mistakes (ValueError from the
     target) raised as themselves, so that they reach the console as one line. ``kwargs`` are
     passed to the partial rather than to ``instantiate``, which would merge them into the
-    config (a robot, being a dataclass, would become a config node)."""
+    config (a robot, being a dataclass, would become a config node). ``root``: the config
+    ``node`` belongs to, where its interpolations (``${population}``) point."""
     from hydra.errors import InstantiationException
     from hydra.utils import instantiate as hydra_instantiate
 
+    direct = _direct(node, root)
+    if direct is not None:
+        target, settings = direct
+        return target(**{**settings, **kwargs})  # as functools.partial: the call's keywords win
     trusted = {"_execution_whitelist_": TRUSTED_TARGETS} if hydra_14() else {}
     try:
         return hydra_instantiate(node, _partial_=True, **trusted)(**kwargs)
@@ -461,6 +467,103 @@ def instantiate(node: DictConfig, key: str, **kwargs: Any) -> Any:
         if isinstance(cause, (ValueError, OSError)):
             raise cause from None
         raise ConfigError(f"{key}: {str(exc).splitlines()[0]}") from None
+
+
+_SPECIAL = ("_target_", "_recursive_", "_convert_", "_partial_", "_args_")
+
+
+def _direct(node: Any, root: DictConfig | None) -> tuple[Any, dict] | None:
+    """The target and settings of a node that :func:`instantiate` calls itself, as Hydra would
+    (a sweep builds an optimiser per run: Hydra's deep copy and resolution of the config cost
+    more than the rest of the run's set-up): a zrp_ga target given its settings' values, where
+    Hydra would hand it the same values (no nested objects to build: ``_recursive_: false``, or
+    plain values only). A setting that names another node of ``root`` (``${population}``) is
+    that node, as OmegaConf resolves it. None: Hydra builds it."""
+    from omegaconf import OmegaConf
+
+    if not isinstance(node, DictConfig):
+        return None
+    raw = OmegaConf.to_container(node, resolve=False)
+    name = raw.get("_target_")
+    if not isinstance(name, str) or not name.startswith("zrp_ga.") or any(k in raw for k in _SPECIAL[2:]):
+        return None
+    settings = {}
+    for k, v in raw.items():
+        if k in _SPECIAL:
+            continue
+        path = _reference(v, root)
+        settings[str(k)] = node[k] if path is None else OmegaConf.select(root, path)
+    if raw.get("_recursive_", True) is not False and any(isinstance(v, DictConfig | ListConfig) for v in settings.values()):
+        return None
+    target = _target(name)
+    return None if target is None else (target, settings)
+
+
+_NODE = re.compile(r"\$\{([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*)\}")  # ${a.b}: a reference to a node, from the root
+
+
+def _reference(value: Any, root: DictConfig | None) -> str | None:
+    """The path of the config node (a dict or list in ``root``) that ``value`` names as the whole
+    of its text (``${population}``); None for anything else."""
+    from omegaconf import OmegaConf
+
+    if root is None or not isinstance(value, str) or not (m := _NODE.fullmatch(value)):
+        return None
+    target = OmegaConf.select(root, m[1], default=None)
+    return m[1] if isinstance(target, DictConfig | ListConfig) else None
+
+
+def resolved(cfg: DictConfig) -> dict:
+    """``OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)``, the config as its files
+    record it, with the interpolations that name another node of ``cfg`` (``algorithm.population:
+    ${population}``) copied from that node rather than parsed one by one (a sweep records the
+    config of every run); any other interpolation: OmegaConf resolves the whole."""
+    from omegaconf import OmegaConf
+
+    raw = OmegaConf.to_container(cfg, resolve=False, enum_to_str=True)
+
+    def filled(o: Any, seen: tuple[str, ...]) -> Any:
+        if isinstance(o, dict):
+            return {k: filled(v, seen) for k, v in o.items()}
+        if isinstance(o, list):
+            return [filled(v, seen) for v in o]
+        if isinstance(o, str) and "${" in o:
+            path = _NODE.fullmatch(o)
+            target = _at(raw, path[1]) if path and path[1] not in seen else None
+            if not isinstance(target, (dict, list)):
+                raise _Unresolved
+            return filled(target, (*seen, path[1]))
+        return o
+
+    try:
+        return filled(raw, ())
+    except _Unresolved:
+        return OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+
+
+class _Unresolved(Exception):
+    """An interpolation :func:`resolved` leaves to OmegaConf."""
+
+
+def _at(tree: Any, path: str) -> Any:
+    """The value at dotted ``path`` in nested dicts (None if there is none)."""
+    for part in path.split("."):
+        if not isinstance(tree, dict) or part not in tree:
+            return None
+        tree = tree[part]
+    return tree
+
+
+@functools.cache
+def _target(name: str) -> Any:
+    """The object ``module.attr`` names (None if it cannot be imported: Hydra then says why)."""
+    import importlib
+
+    module, _, attr = name.rpartition(".")
+    try:
+        return getattr(importlib.import_module(module), attr)
+    except (ImportError, AttributeError):
+        return None
 
 
 # --- what differs between the Hydra releases zrp_ga supports (hydra-core 1.3.2 - 1.4) -------------

@@ -38,7 +38,9 @@ ZRP direction, so that q turns the same way). Choices where the geometry leaves 
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -190,14 +192,44 @@ def to_dh(
     size = float(np.linalg.norm(robot.b0, axis=1).sum()) if max_offset is None else max_offset
     base, rows, axis_frames, far = walk(points, robot.u0, hand, parallel_tol, size, base_x)
     a, alpha, d, theta, beta = _tidy(np.array(rows).T)
-    table = DHTable(
-        convention, a, alpha, d, theta, robot.joint_types, base=_tidy(base), name=robot.name,
-        joint_names=robot.joint_names, limits=robot.limits, beta=beta,
-    )
+    table = _table(convention, a, alpha, d, theta, robot, _tidy(base), beta)
     last = table.forward(np.zeros(robot.n))  # frame n of the tidied table
-    table = dataclasses.replace(table, tool=_tidy(np.linalg.inv(last) @ hand))
+    table = _with_tool(table, _tidy(np.linalg.inv(last) @ hand))
     notes = _hayati_notes(robot, table, far) + _axis_notes(robot, axis_frames[:-1])
     return table, _mismatch(robot, table, samples, seed, notes)
+
+
+def _table(convention: str, a: Array, alpha: Array, d: Array, theta: Array, robot: ZRPRobot, base: Array,
+           beta: Array) -> DHTable:  # fmt: skip
+    """``DHTable(convention, a, alpha, d, theta, robot.joint_types, base=base, name=robot.name,
+    joint_names=robot.joint_names, limits=robot.limits, beta=beta)`` for the rows :func:`to_dh`
+    read off the checked arm ``robot``: the fields as DHTable makes them (float arrays, read-only),
+    without checking them again through a ZRP robot of their own (a third of to_dh's time).
+    Rows that are not finite are refused all the same."""
+    values = {"a": a, "alpha": alpha, "d": d, "theta": theta, "beta": beta, "base": base, "tool": np.eye(4)}
+    values["limits"] = None if robot.limits is None else robot.limits
+    table = object.__new__(DHTable)
+    for field, value in values.items():
+        if value is not None:
+            value = np.array(value, dtype=float)
+            if not np.all(np.isfinite(value)):
+                raise ValueError(f"{field}: expected finite numbers, got {value!r}")
+            value.setflags(write=False)
+        object.__setattr__(table, field, value)
+    for field, value in (("convention", convention), ("joint_types", robot.joint_types), ("name", robot.name),
+                         ("joint_names", robot.joint_names)):  # fmt: skip
+        object.__setattr__(table, field, value)
+    return table
+
+
+def _with_tool(table: DHTable, tool: Array) -> DHTable:
+    """``dataclasses.replace(table, tool=tool)`` without checking the table again: the rows were
+    checked when it was built, and the tool, computed from its own frame n, is a transform."""
+    tool = np.array(tool, dtype=float)
+    tool.setflags(write=False)
+    out = copy.copy(table)
+    object.__setattr__(out, "tool", tool)
+    return out
 
 
 DH_KINDS = ("a", "alpha", "d", "theta", "beta")  # the columns of a table row, as named by parameters()
@@ -319,13 +351,13 @@ def _tilt(M: Array, axis: Array) -> tuple[float, float]:
 
 def _line_angle(u1: Array, u2: Array) -> float:
     """Angle between two lines (rad, 0 to pi/2): parallel and anti-parallel axes alike."""
-    return float(np.arctan2(np.linalg.norm(np.cross(u1, u2)), abs(np.dot(u1, u2))))
+    return float(np.arctan2(_norm(_cross(u1, u2)), abs(np.dot(u1, u2))))
 
 
 def _normal_distance(o: Array, z: Array, point: Array, axis: Array) -> float:
     """How far along line (o, z) from o its common normal with line (point, axis) leaves it
     (inf for exactly parallel lines)."""
-    c = np.cross(z, axis)
+    c = _cross(z, axis)
     if np.dot(c, c) == 0.0:
         return np.inf
     return abs(np.dot(_closest_point(o, z, point, axis) - o, z))
@@ -338,7 +370,7 @@ def _crossing(o: Array, z: Array, point: Array, axis: Array) -> Array:
 
 def _normal_towards(r: Array, x_prev: Array) -> Array:
     """Unit x along r (sign as for common normals), or x_prev when r is zero."""
-    return _signed(r / np.linalg.norm(r), x_prev, r) if np.linalg.norm(r) > _EPS_M else x_prev
+    return _signed(r / _norm(r), x_prev, r) if _norm(r) > _EPS_M else x_prev
 
 
 def _base_frame(point: Array, axis: Array, base_x: ArrayLike | None = None) -> Array:
@@ -357,19 +389,19 @@ def _dh_end_frame(T: Array, hand: Array) -> Array:
     r = hand[:3, 3] - o
     x = _end_normal(r - np.dot(r, z) * z, z, T[:3, 0], hand)
     z_n = hand[:3, 2] - np.dot(hand[:3, 2], x) * x
-    z_n = z_n if np.linalg.norm(z_n) > 1e-9 else z
+    z_n = z_n if _norm(z_n) > 1e-9 else z
     return _frame(hand[:3, 3], x, z_n, keep="x")
 
 
 def _end_normal(r: Array, z: Array, x_prev: Array, hand: Array) -> Array:
     """Unit x perpendicular to z: along r (sign as for common normals) or, when r is zero,
     along the hand's x axis (its y axis when x is along z)."""
-    if np.linalg.norm(r) > _EPS_M:
-        return _signed(r / np.linalg.norm(r), x_prev, r)
+    if _norm(r) > _EPS_M:
+        return _signed(r / _norm(r), x_prev, r)
     for e in (hand[:3, 0], hand[:3, 1]):
         x = e - np.dot(e, z) * z
-        if np.linalg.norm(x) > 1e-6:
-            return x / np.linalg.norm(x)
+        if _norm(x) > 1e-6:
+            return x / _norm(x)
     raise AssertionError("the hand's x and y axes cannot both be along z")  # pragma: no cover
 
 
@@ -379,25 +411,25 @@ def _common_normal(
     """Feet on line 1 (p1, u1) and line 2 (p2, u2) of their common normal and its unit
     direction. Lines within ``tol`` rad of parallel: the normal through the foot of ``anchor``
     on line 1 (x along the offset, or ``x_prev`` when the lines coincide)."""
-    c = np.cross(u1, u2)
-    if np.linalg.norm(c) > np.sin(tol):
+    c = _cross(u1, u2)
+    if _norm(c) > np.sin(tol):
         foot1, foot2 = _closest_point(p1, u1, p2, u2), _closest_point(p2, u2, p1, u1)
-        normal = c / np.linalg.norm(c)
+        normal = c / _norm(c)
     else:
         foot1 = p1 + np.dot(anchor - p1, u1) * u1
         foot2 = p2 + np.dot(foot1 - p2, u2) * u2
         r = foot2 - foot1
-        normal = r / np.linalg.norm(r) if np.linalg.norm(r) > _EPS_M else x_prev
+        normal = r / _norm(r) if _norm(r) > _EPS_M else x_prev
     return foot1, foot2, _signed(normal, x_prev, foot2 - foot1)
 
 
 def _closest_point(p1: Array, u1: Array, p2: Array, u2: Array) -> Array:
     """The point of line 1 (p1, unit u1) closest to line 2 (p2, unit u2); for parallel lines,
     the foot of p2 on line 1."""
-    c = np.cross(u1, u2)
+    c = _cross(u1, u2)
     if np.dot(c, c) < 1e-24:
         return p1 + np.dot(p2 - p1, u1) * u1
-    return p1 + np.dot(np.cross(p2 - p1, u2), c) / np.dot(c, c) * u1
+    return p1 + np.dot(_cross(p2 - p1, u2), c) / np.dot(c, c) * u1
 
 
 def _signed(x: Array, x_prev: Array, r: Array) -> Array:
@@ -412,16 +444,40 @@ def _signed(x: Array, x_prev: Array, r: Array) -> Array:
 def _frame(origin: Array, x: Array, z: Array, keep: str = "z") -> Array:
     """4x4 frame with that origin, z axis and x axis (x made perpendicular to z, or z to x with
     ``keep="x"``), y = z cross x."""
-    z = z / np.linalg.norm(z)
+    z = z / _norm(z)
     if keep == "z":
         x = x - np.dot(x, z) * z
     else:
         z = z - np.dot(z, x) * x
-        z = z / np.linalg.norm(z)
-    x = x / np.linalg.norm(x)
+        z = z / _norm(z)
+    x = x / _norm(x)
     T = np.eye(4)
-    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, np.cross(z, x), z, origin
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, _cross(z, x), z, origin
     return T
+
+
+# --- small vectors and matrices ----------------------------------------------------------------
+# What np.cross, np.linalg.norm and np.tile(np.eye(4), ...) compute, to the last bit (the same
+# products and sums in the same order), without their overhead on 3-vectors: to_dh calls them
+# a few hundred times, and a run of a sweep writes two tables.
+def _cross(u: Array, v: Array) -> Array:
+    """``np.cross(u, v)`` of two 3-vectors."""
+    (u0, u1, u2), (v0, v1, v2) = u.tolist(), v.tolist()
+    return np.array([u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0])
+
+
+def _norm(v: Array) -> float:
+    """``np.linalg.norm(v)`` of a vector (which is ``sqrt(v.dot(v))`` of it raveled)."""
+    v = v.ravel(order="K")
+    return math.sqrt(v.dot(v))
+
+
+_EYES = np.eye(4)[None]
+
+
+def _eyes(m: int) -> Array:
+    """(m, 4, 4) identities."""
+    return _EYES.repeat(m, axis=0)
 
 
 # --- rows and links -----------------------------------------------------------------------------
@@ -453,7 +509,7 @@ def _row_link(convention: str, row: tuple[float, ...]) -> Array:
 
 def _link(convention: str, theta: Array, d: Array, a: float, alpha: float, beta: float = 0.0) -> Array:
     """(M, 4, 4) link transforms for M values of theta and d (arrays of shape (M,))."""
-    const = lambda v: np.full_like(d, v)
+    const = lambda v: np.full(d.shape, v, dtype=d.dtype)
     tilt = _rot(1, const(beta)) if beta else np.eye(4)
     if convention == "dh":
         return _rot(2, theta) @ _shift(2, d) @ _shift(0, const(a)) @ _rot(0, const(alpha)) @ tilt
@@ -463,7 +519,7 @@ def _link(convention: str, theta: Array, d: Array, a: float, alpha: float, beta:
 def _rot(axis: int, angle: Array) -> Array:
     """(M, 4, 4) rotations by ``angle`` (M,) rad about coordinate axis 0 (x), 1 (y) or 2 (z)."""
     j, k = [(1, 2), (2, 0), (0, 1)][axis]
-    T = np.tile(np.eye(4), (len(angle), 1, 1))
+    T = _eyes(len(angle))
     T[:, j, j] = T[:, k, k] = np.cos(angle)
     T[:, k, j], T[:, j, k] = np.sin(angle), -np.sin(angle)
     return T
@@ -471,7 +527,7 @@ def _rot(axis: int, angle: Array) -> Array:
 
 def _shift(axis: int, length: Array) -> Array:
     """(M, 4, 4) translations by ``length`` (M,) m along coordinate axis ``axis``."""
-    T = np.tile(np.eye(4), (len(length), 1, 1))
+    T = _eyes(len(length))
     T[:, axis, 3] = length
     return T
 
@@ -502,9 +558,9 @@ def _axis_notes(robot: ZRPRobot, axis_frames: Sequence[Array]) -> tuple[str, ...
     names = robot.joint_names or [f"joint_{i + 1}" for i in range(robot.n)]
     notes = []
     for i, F in enumerate(axis_frames):
-        angle = np.arctan2(np.linalg.norm(np.cross(F[:3, 2], robot.u0[i])), np.dot(F[:3, 2], robot.u0[i]))
+        angle = np.arctan2(_norm(_cross(F[:3, 2], robot.u0[i])), np.dot(F[:3, 2], robot.u0[i]))
         r = F[:3, 3] - points[i]
-        dist = 0.0 if robot.joint_types[i] == "P" else np.linalg.norm(r - np.dot(r, robot.u0[i]) * robot.u0[i])
+        dist = 0.0 if robot.joint_types[i] == "P" else _norm(r - np.dot(r, robot.u0[i]) * robot.u0[i])
         if angle > 1e-12 or dist > 1e-12:
             notes.append(
                 f"joint {i + 1} ({names[i]}): the table's axis {i + 1} is off by {angle:.3g} rad, {dist:.3g} m"

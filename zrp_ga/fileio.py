@@ -23,6 +23,46 @@ def yaml_text(data, **options) -> str:
     return yaml.dump(data, Dumper=getattr(yaml, "CSafeDumper", yaml.SafeDumper), **options)
 
 
+def replace(tmp: str | Path, path: str | Path) -> None:
+    """``os.replace(tmp, path)``: ``path`` is the old file or the new one at every moment,
+    whole. An existing ``path`` is swapped with ``tmp`` (Linux's ``renameat2`` with
+    ``RENAME_EXCHANGE``) and the old file, now at ``tmp``, removed: ext4 writes a file renamed
+    over another out to the disk at once (its ``auto_da_alloc``), which costs milliseconds on a
+    busy disk; a run rewrites its checkpoint a dozen times. Elsewhere, or when the swap is
+    refused (no such call, another file system, no ``path`` yet), ``os.replace``."""
+    if _exchange is not None and _exchange(os.fsencode(tmp), os.fsencode(path)):
+        try:
+            os.unlink(tmp)
+        except OSError:  # left as a temporary file: the run directory's next run removes it
+            pass
+        return
+    os.replace(tmp, path)
+
+
+def _exchanger():
+    """A function swapping two paths (True when done), or None: Linux's renameat2, through ctypes."""
+    import ctypes
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        renameat2 = ctypes.CDLL(None, use_errno=True).renameat2
+    except (OSError, AttributeError):  # a C library without it (glibc before 2.28, musl)
+        return None
+    renameat2.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    renameat2.restype = ctypes.c_int
+    at_fdcwd, rename_exchange = -100, 2  # <fcntl.h>, <linux/fs.h>
+
+    def exchange(a: bytes, b: bytes) -> bool:
+        return renameat2(at_fdcwd, a, at_fdcwd, b, rename_exchange) == 0
+
+    return exchange
+
+
+_exchange = _exchanger()
+
+
 def _plain(o):
     if isinstance(o, np.ndarray):
         return o.tolist()
@@ -47,7 +87,7 @@ def write_json(path: str | Path, data: dict) -> None:
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     tmp.write_text(text + "\n")
-    os.replace(tmp, path)
+    replace(tmp, path)
 
 
 def write_csv(path: str | Path, rows: Iterable[dict], columns: list[str] | None = None) -> None:

@@ -11,7 +11,9 @@ Plain ``csv`` and ``json``: a run does not import pandas.
 
 from __future__ import annotations
 
+import csv
 import functools
+import io
 
 import numpy as np
 
@@ -59,6 +61,24 @@ def params_by_joint(layout: Layout, x: np.ndarray, truth: np.ndarray | None = No
         for row, true in zip(out, table(np.asarray(truth, dtype=float))):
             row.update({f"true_{k}": v for k, v in true.items() if k != "joint"})
     return out
+
+
+def write_population(path, names: list[str], X: np.ndarray, costs: np.ndarray) -> None:
+    """``write_csv(path, population_table(names, X, costs))``, the same text, row by row from the
+    arrays (a sweep writes one per run: building a dict per individual took most of the time)."""
+    X, costs = np.asarray(X), np.asarray(costs)
+    columns = ["individual", *names, "cost"]
+    if (len(set(columns)) != len(columns) or X.ndim != 2 or X.shape[1] != len(names) or X.dtype.kind != "f"
+            or costs.shape != (len(X),) or costs.dtype.kind != "f" or not len(X)):  # fmt: skip
+        write_csv(path, population_table(names, X, costs))  # the general path
+        return
+    out = io.StringIO()
+    csv.writer(out).writerow(columns)  # the header as csv.DictWriter writes it (names quoted where they must be)
+    # each row as it writes it: floats as repr (write_csv), which needs no quoting; repr(list) joins them in C
+    out.writelines(f"{i + 1},{repr(x)[1:-1].replace(', ', ',')},{c!r}\r\n"
+                   for i, (x, c) in enumerate(zip(X.tolist(), costs.tolist())))  # fmt: skip
+    with open(path, "w", newline="") as f:
+        f.write(out.getvalue())
 
 
 def population_table(names: list[str], X: np.ndarray, costs: np.ndarray) -> list[dict]:

@@ -43,7 +43,9 @@ the line (XML) or the joint, and what is wrong.
 
 from __future__ import annotations
 
+import functools
 import logging
+import math
 from pathlib import Path
 from typing import NamedTuple
 
@@ -327,33 +329,60 @@ def dh_to_yaml(
         lines.append(f"# Rows with beta are Hayati rows (nearly parallel axes): A = {link[table.convention]}")
     head = {"name": table.name, "convention": table.convention, "units": {"length": length, "angle": angle}}
     lines += [records.yaml_text(head, sort_keys=False, default_flow_style=None).rstrip(), "joints:"]
+    a, alpha, d, theta, beta = _short([table.a / L, table.alpha / A, table.d / L, table.theta / A, table.beta / A])
+    if table.limits is not None:
+        limits = _short(np.asarray(table.limits) / np.array([[A if kind == "R" else L] for kind in table.joint_types]))
     for i, kind in enumerate(table.joint_types):
-        row = {"name": names[i], "type": kind, "a": _short(table.a[i] / L), "alpha": _short(table.alpha[i] / A),
-               "d": _short(table.d[i] / L), "theta": _short(table.theta[i] / A)}
+        row = [_flow_text("name", names[i]), _flow_text("type", kind)]
+        row += [f"{k}: {_yaml_float(v)}" for k, v in (("a", a[i]), ("alpha", alpha[i]), ("d", d[i]), ("theta", theta[i]))]
         if table.beta[i]:
-            row["beta"] = _short(table.beta[i] / A)
+            row.append(f"beta: {_yaml_float(beta[i])}")
         if table.limits is not None:
-            row["limits"] = _short(np.asarray(table.limits[i]) / (A if kind == "R" else L))
-        line = "  - " + records.yaml_text(row, default_flow_style=True, sort_keys=False, width=10**9).strip()
-        lines.append(line + ("  # Hayati row" if table.beta[i] else ""))
-    for key in ("base", "tool"):
-        T = getattr(table, key)
-        pose = {"xyz": _short(T[:3, 3] / L), "rpy": _short(so3.rpy(T[:3, :3]) / A)}
-        lines.append(records.yaml_text({key: pose}, sort_keys=False, default_flow_style=None).rstrip())
+            row.append(f"limits: [{', '.join(map(_yaml_float, limits[i]))}]")
+        lines.append("  - {" + ", ".join(row) + "}" + ("  # Hayati row" if table.beta[i] else ""))
+    poses = {key: {"xyz": _short(T[:3, 3] / L), "rpy": _short(so3.rpy(T[:3, :3]) / A)}
+             for key, T in (("base", table.base), ("tool", table.tool))}  # fmt: skip
+    lines.append(records.yaml_text(poses, sort_keys=False, default_flow_style=None).rstrip())
     text = "\n".join(lines) + "\n"
     if path is not None:
         Path(path).write_text(text)
     return text
 
 
+# A joint row is written as PyYAML writes it (a flow mapping on one line), without PyYAML for the
+# numbers: a run writes two tables at its end, and PyYAML takes most of their time.
+@functools.lru_cache(maxsize=1024)
+def _flow_text(key: str, value: str) -> str:
+    """``key: value`` as an entry of a flow mapping, quoted as PyYAML quotes it."""
+    return records.yaml_text({key: value}, default_flow_style=True, width=10**9).strip()[1:-1]
+
+
+def _yaml_float(x: float) -> str:
+    """A float as PyYAML writes it (``yaml.representer.SafeRepresenter.represent_float``)."""
+    if x != x:
+        return ".nan"
+    if x in (math.inf, -math.inf):
+        return ".inf" if x > 0 else "-.inf"
+    text = repr(x).lower()
+    return text.replace("e", ".0e", 1) if "." not in text and "e" in text else text
+
+
 def _short(x: ArrayLike) -> float | list:
     """x (a number or array) as the floats of shortest decimal form within 8 units in the last place."""
     x = np.asarray(x, dtype=float)
-    steps = np.arange(-8, 9)
-    near = x[..., None] + np.spacing(x)[..., None] * steps
-    digits = np.vectorize(lambda v: len(repr(float(v))))(near) + np.abs(steps) / 100  # ties: the nearest
-    best = np.take_along_axis(near, np.argmin(digits, axis=-1)[..., None], axis=-1)[..., 0] + 0.0
-    return best.tolist()
+    near = x[..., None] + np.spacing(x)[..., None] * _STEPS
+    best = [_fewest_characters(row) for row in near.reshape(-1, _STEPS.size).tolist()]
+    return (np.array(best).reshape(x.shape) + 0.0).tolist()
+
+
+_STEPS = np.arange(-8, 9)  # the candidates of _short: within 8 units in the last place
+_NEAREST_FIRST = sorted(range(_STEPS.size), key=lambda j: (abs(_STEPS[j]), j))  # ties: the nearer, then the smaller
+
+
+def _fewest_characters(candidates: list[float]) -> float:
+    lengths = list(map(len, map(repr, candidates)))
+    fewest = min(lengths)
+    return next(candidates[j] for j in _NEAREST_FIRST if lengths[j] == fewest)
 
 
 # --- ZRP YAML ----------------------------------------------------------------------------------
@@ -386,13 +415,23 @@ def write_robot_files(
     ``quaternion_xyzw`` (x, y, z, w: scalar last). The DH and ZRP files hold the arm alone.
     Returns {"urdf", "dh", "mdh", "zrp", "frames"} -> path.
     """
+    return write_all(robot, out_dir, stem, base, tool)[0]
+
+
+def write_all(
+    robot: ZRPRobot, out_dir: str | Path, stem: str = "calibrated_robot",
+    base: ArrayLike | None = None, tool: ArrayLike | None = None,
+) -> tuple[dict[str, Path], dict[str, DHMismatch]]:
+    """:func:`write_robot_files`, and the mismatch of each DH table written ({"dh", "mdh"}):
+    each table is computed once (a run of a sweep writes its files in milliseconds)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"urdf": out / f"{stem}.urdf", "dh": out / f"{stem}_dh.yaml", "mdh": out / f"{stem}_mdh.yaml",
              "zrp": out / f"{stem}.yaml", "frames": out / f"{stem}_frames.yaml"}
     to_urdf(robot, paths["urdf"], base, tool)
+    mismatches = {}
     for convention, title in (("dh", "Standard DH"), ("mdh", "Modified DH")):
-        table, mismatch = to_dh(robot, convention)
+        table, mismatch = mismatches[convention] = to_dh(robot, convention)
         header = f"{title} table of {robot.name} (zrp_ga.robot_files.to_dh): {mismatch}"
         dh_to_yaml(table, paths[convention], comment="\n".join([header, *mismatch.notes]))
         if table.beta.any():
@@ -408,7 +447,7 @@ def write_robot_files(
         "# quaternion_xyzw: x, y, z, w (scalar last, as scipy and ROS).\n"
     )
     paths["frames"].write_text(comment + records.yaml_text(frames, sort_keys=False, default_flow_style=None))
-    return paths
+    return paths, {k: m for k, (_, m) in mismatches.items()}
 
 
 def _frame_entry(T: Array) -> dict:

@@ -240,7 +240,7 @@ def write(out: Path, task: Task, result: Result, summary: dict, x: np.ndarray) -
             truth = error_model.canonical(p.layout, p.nominal, truth)
         params = records.params_by_joint(p.layout, x, truth)
     records.write_csv(out / directory.BEST_PARAMS, params)
-    records.write_csv(out / directory.INITIAL_POPULATION, records.population_table(p.names, result.initial_x, result.initial_costs))
+    records.write_population(out / directory.INITIAL_POPULATION, p.names, result.initial_x, result.initial_costs)
     task.write(out, x)
     summary["calibrated_robot"] = write_robot(out, task, x)
     records.write_json(out / directory.SUMMARY, summary)
@@ -251,7 +251,7 @@ def write_robot(out: Path, task: Task, x: np.ndarray, stem: str = "calibrated_ro
     ``summary.json`` says about them: the files, the DH table's mismatch, base and tools."""
     arm, base, tools = task.export(x)
     first = next(iter(tools.values()), None)
-    paths = robot_files.write_robot_files(arm, out, stem, base=base, tool=first)
+    paths, mismatch = robot_files.write_all(arm, out, stem, base=base, tool=first)
     if len(tools) > 1:
         from zrp_ga.robot_files import _frame_entry  # the frames file's own entry format
 
@@ -259,11 +259,6 @@ def write_robot(out: Path, task: Task, x: np.ndarray, stem: str = "calibrated_ro
         with open(paths["frames"], "a") as f:
             f.write("# tools: every tool point's frame in the hand frame (tool: the first).\n")
             f.write(records.yaml_text({"tools": entries}, sort_keys=False, default_flow_style=None))
-    paths["mdh"] = out / f"{stem}_mdh.yaml"
-    mdh, mdh_mismatch = robot_files.to_dh(arm, "mdh")
-    header = f"Modified DH table of {arm.name} (zrp_ga.robot_files.to_dh): {mdh_mismatch}"
-    robot_files.dh_to_yaml(mdh, paths["mdh"], comment="\n".join([header, *mdh_mismatch.notes]))
-    mismatch = {"dh": robot_files.to_dh(arm)[1], "mdh": mdh_mismatch}
     return {"files": {k: v.name for k, v in paths.items()},
             **{f"{k}_mismatch": {"position_mm": m.position_m * 1e3, "orientation_mrad": m.orientation_rad * 1e3,
                                  "samples": m.samples, "notes": list(m.notes)} for k, m in mismatch.items()},

@@ -39,6 +39,7 @@ class Prepared:
     out: Path | None  # the run directory (None: no files)
     instance: str  # the problem instance's key (zrp_ga.run.shared)
     choices: dict[str, Any] = dataclasses.field(default_factory=dict)  # the config's group options, for summary.json
+    resolved: dict[str, Any] = dataclasses.field(default_factory=dict)  # cfg as plain values (config.resolved), for the files
 
 
 def task_config(cfg: DictConfig) -> DictConfig:
@@ -82,23 +83,30 @@ def build(cfg: DictConfig, out: Path | None, state: dict | None, choices: dict, 
     if cfg.checkpoint_every < 0:
         raise ConfigError(f"checkpoint_every: must be >= 0, got {cfg.checkpoint_every}")
     checks.run_settings(cfg)  # seeds, an optimiser's needs of the shared settings (zrp_ga.checks)
-    with threadpool_limits(limits=1, user_api="blas"):  # the problem's SVDs: see zrp_ga.run.execute
-        key = instance_key(cfg)
-        if task is None:
-            task = cache.instance(key, lambda: _instance(cfg))
-        algorithm = config.instantiate(cfg.algorithm, "algorithm")
+    resolved = config.resolved(cfg)
+    key = instance_key(cfg, resolved)
+    if task is None:
+        def limited() -> Any:
+            with threadpool_limits(limits=1, user_api="blas"):  # the problem's SVDs: see zrp_ga.run.execute
+                return _instance(cfg)
+
+        task = cache.instance(key, limited)  # built once per instance (threadpoolctl's set-up costs ms)
+    algorithm = config.instantiate(cfg.algorithm, "algorithm", root=cfg)
     if state is not None and not algorithm.checkpointable:
         raise ConfigError(f"resume: {type(algorithm).__name__} runs keep no checkpoints")
     if cfg.objective is config.Objective.over_floor and isinstance(task, SelfJudging):
         raise ConfigError("objective: over_floor divides by a calibration's floor; this problem kind has none (use final_cost)")
-    return Prepared(cfg, task, algorithm, state, out, key, dict(choices))
+    return Prepared(cfg, task, algorithm, state, out, key, dict(choices), resolved)
 
 
-def instance_key(cfg: DictConfig) -> str:
+def instance_key(cfg: DictConfig, resolved: dict | None = None) -> str:
     """The problem instance's key: the resolved robot and problem settings and the seed, as
     JSON, with the size and modification time of the files they name (an edited file is another
-    instance)."""
-    parts = {k: OmegaConf.to_container(cfg[k], resolve=True, enum_to_str=True) for k in ("robot", "problem")}
+    instance). ``resolved``: ``cfg`` resolved already (:func:`zrp_ga.config.resolved`)."""
+    if resolved is None:
+        parts = {k: OmegaConf.to_container(cfg[k], resolve=True, enum_to_str=True) for k in ("robot", "problem")}
+    else:
+        parts = {k: resolved[k] for k in ("robot", "problem")}
     return json.dumps({**parts, "seed": int(cfg.seed), "files": _stamps(cfg)}, sort_keys=True)
 
 
