@@ -81,7 +81,7 @@ def execute(p: Prepared, out: Path | None, progress: bool, sweep: Sweep | None =
     random.seed(seed)  # DEAP's own operators draw from `random`
     np.random.seed(seed % 2**32)
     rng = np.random.default_rng([seed, 0])  # the optimiser's stream; problems draw from [seed, 1] and up
-    resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    resolved = p.resolved or OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
     cbs = [callbacks.Timing(), callbacks.Validation(task.judge)]
     if out is not None:
         cbs.append(callbacks.ConvergenceLog(out / directory.CONVERGENCE, None if p.state is None else int(p.state["gen"])))
@@ -308,7 +308,7 @@ def _callbacks(p: Prepared, callbacks: Any, hashed: dict[str, dict]) -> tuple:
     random.seed(seed)  # the state a run alone starts from (zrp_ga's own operators never draw from it)
     seeded = random.getstate()
     random.setstate(before)
-    resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    resolved = p.resolved or OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
     cbs = [callbacks.Timing(), callbacks.Validation(task.judge)]
     if p.out is not None:
         every = int(cfg.checkpoint_every) if p.algorithm.checkpointable else 0
