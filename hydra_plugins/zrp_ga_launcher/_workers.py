@@ -38,13 +38,22 @@ from pathlib import Path
 from typing import Any
 
 from hydra.core.singleton import Singleton
-from hydra.core.utils import JobReturn, JobStatus, configure_log, filter_overrides, run_job, setup_globals
+from hydra.core.utils import JobReturn, JobStatus, configure_log, filter_overrides, setup_globals
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
 
+from . import _batch
+
 log = logging.getLogger(__name__)
 AHEAD = 2  # batches a worker holds: one running, one waiting
+MIN_BATCH, MAX_BATCH, ROUNDS = 8, 256, 3  # jobs run together (batch_size)
 PATIENCE_S = (2.0, 15.0)  # at Ctrl-C: waiting for workers to stop on their own, then after signalling them
+
+
+def batch_size(n_jobs: int, n_workers: int) -> int:
+    """Jobs run together in one batch: enough for each worker to get ``ROUNDS`` batches of the
+    sweep (so that the workers end together), at least ``MIN_BATCH``, at most ``MAX_BATCH``."""
+    return max(MIN_BATCH, min(MAX_BATCH, -(-n_jobs // (n_workers * ROUNDS))))
 
 
 def n_workers(n_jobs: int) -> int:
@@ -85,11 +94,17 @@ def _serve(conn: Any, start: _Start) -> None:
         if start.warm_up:
             _warm_up(start.warm_up, start.config)
         while True:
-            batch = conn.recv()
-            if batch is None:
+            message = conn.recv()
+            if message is None:
                 return
+            together, batch = message
+            if together:  # their runs evolved together
+                configs = [(idx, pickle.loads(data)) for idx, data in batch]
+                for (idx, _), ret in zip(batch, _batch.run_batch(configs, start.hydra_context, task_function)):
+                    conn.send_bytes(_dump_return(idx, ret))
+                continue
             for idx, data in batch:
-                ret = _run_job(idx, data, start.hydra_context, task_function)
+                ret = _batch.run_alone(idx, pickle.loads(data), start.hydra_context, task_function)
                 conn.send_bytes(_dump_return(idx, ret))
     except (EOFError, OSError):  # the driver is gone
         return
@@ -102,16 +117,6 @@ def _warm_up(path: str, config: DictConfig) -> None:
     t0 = time.perf_counter()
     _locate(path)(config)
     log.debug(f"warm-up ({path}) in process {os.getpid()}: {time.perf_counter() - t0:.2f} s")
-
-
-def _run_job(idx: int, data: bytes, hydra_context: HydraContext, task_function: TaskFunction) -> JobReturn:
-    """One job with Hydra's ``run_job``, as Hydra's basic launcher runs it."""
-    config = pickle.loads(data)
-    with open_dict(config):
-        config.hydra.job.id = str(idx)  # a string field
-        config.hydra.job.num = idx
-    return run_job(hydra_context=hydra_context, task_function=task_function, config=config,
-                   job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")  # fmt: skip
 
 
 def _dump_return(idx: int, ret: JobReturn) -> bytes:
@@ -277,6 +282,9 @@ class _Dispatcher:
         from ._progress import SweepProgress
 
         self.progress = SweepProgress(len(self.overrides), bool(launcher.config.get("progress", True)))
+        self.together = bool(launcher.settings.lockstep) and _batch.is_zrp_ga(launcher.task_function)
+        self.pending: dict[str, list] = {}  # batch key -> jobs composed, not sent yet
+        self.size = batch_size(len(todo), len(pool.workers))
 
     def show_progress(self, close: bool = False) -> None:
         """The progress line (``_progress``): jobs ended, failed, running (a worker runs one at a time)."""
@@ -302,17 +310,60 @@ class _Dispatcher:
 
     def feed(self, w: _Worker) -> None:
         """Send ``w`` batches until it holds ``AHEAD``."""
-        while len(w.batches) < AHEAD and self.todo:
-            batch = [self.todo.popleft() for _ in range(min(self.launcher.settings.batch_size, len(self.todo)))]
-            for idx, overrides in batch:
+        while len(w.batches) < AHEAD:
+            together, batch = self.next_batch()
+            if not batch:
+                return
+            for idx, overrides, _ in batch:
                 log.info(f"\t#{idx} : {' '.join(filter_overrides(overrides))}")
-            w.conn.send([(idx, self.compose(overrides)) for idx, overrides in batch])
-            w.batches.append([idx for idx, _ in batch])
+            w.conn.send((together, [(idx, data) for idx, _, data in batch]))
+            w.batches.append([idx for idx, _, _ in batch])
 
-    def compose(self, overrides: list[str]) -> bytes:
-        """The job's config, composed now (while the workers run the jobs before it), pickled."""
-        config = self.launcher.hydra_context.config_loader.load_sweep_config(self.launcher.config, overrides)
-        return pickle.dumps(config)
+    def next_batch(self) -> tuple[bool, list[tuple[int, list[str], bytes]]]:
+        """Whether the jobs of the next batch run together, and its jobs (number, overrides,
+        pickled config). Together: jobs of the same ``batch_key``, ``self.size`` of them (fewer
+        at the end of the sweep); else ``batch_size`` jobs one after another."""
+        if not self.together:
+            batch = [self.todo.popleft() for _ in range(min(self.launcher.settings.batch_size, len(self.todo)))]
+            return False, [(idx, overrides, pickle.dumps(self.compose(overrides))) for idx, overrides in batch]
+        while True:
+            full = next((key for key, jobs in self.pending.items() if len(jobs) >= self.size), None)
+            if full is not None:
+                return True, self._pop(full)
+            if not self.todo:
+                break
+            idx, overrides = self.todo.popleft()
+            config = self.compose(overrides)
+            key = self.key(config)
+            job = (idx, overrides, pickle.dumps(config))
+            if key is None:
+                return False, [job]
+            self.pending.setdefault(key, []).append(job)
+        if not self.pending:
+            return False, []
+        return True, self._pop(max(self.pending, key=lambda k: len(self.pending[k])))
+
+    def _pop(self, key: str) -> list:
+        jobs = self.pending[key]
+        batch, self.pending[key] = jobs[: self.size], jobs[self.size :]
+        if not self.pending[key]:
+            del self.pending[key]
+        return batch
+
+    @staticmethod
+    def key(config: DictConfig) -> str | None:
+        """The job's ``batch_key`` (None: it runs alone; so does a job whose config fails here:
+        it fails in its run, with its own message)."""
+        try:
+            from zrp_ga.run import execute
+
+            return execute.batch_key(config)
+        except Exception:
+            return None
+
+    def compose(self, overrides: list[str]) -> DictConfig:
+        """The job's config, composed now (while the workers run the jobs before it)."""
+        return self.launcher.hydra_context.config_loader.load_sweep_config(self.launcher.config, overrides)
 
     def receive(self, w: _Worker) -> None:
         try:
@@ -326,14 +377,14 @@ class _Dispatcher:
             self.feed(w)
 
     def lost(self, w: _Worker) -> None:
-        """``w`` died: its unfinished jobs fail (and are recorded); another worker takes its place."""
+        """``w`` died: its unfinished jobs fail (and are recorded), but those whose run had
+        finished (a batch's runs end before the batch); another worker takes its place."""
         w.process.join(1.0)
         code = w.process.exitcode
+        states = _states(self.sweep)
         for idx in [i for batch in w.batches for i in batch]:
             error = RuntimeError(f"the worker process running this job died (exit code {code})")
-            self.returns[idx] = JobReturn(overrides=self.overrides[idx], status=JobStatus.FAILED)
-            self.returns[idx].return_value = error
-            _record_failure(self.launcher, idx, self.overrides[idx], error)
+            self.returns[idx] = _lost_job(self.launcher, idx, self.overrides[idx], error, states.get(idx))
         self.feed(self.pool.replace(w))
 
     def write_table(self) -> None:
@@ -345,15 +396,37 @@ class _Dispatcher:
         directory.write_table(self.sweep)
 
 
-def _record_failure(launcher: Any, idx: int, overrides: list[str], error: Exception) -> None:
-    """The manifest line of a job whose worker died before it could write one."""
+def _lost_job(launcher: Any, idx: int, overrides: list[str], error: Exception, state: str | None) -> JobReturn:
+    """The return of a job whose worker died before sending it: completed with the objective in
+    its summary when its run had ended (``state``: its last in the manifest), else failed, with
+    the manifest line the job could not write."""
+    ret = JobReturn(overrides=overrides, status=JobStatus.FAILED)
+    ret.return_value = error
     try:
         from zrp_ga.run import directory
     except ImportError:
-        return
+        return ret
     config = launcher.hydra_context.config_loader.load_sweep_config(launcher.config, overrides)
     with open_dict(config):
         config.hydra.job.id, config.hydra.job.num = str(idx), idx
     hc = config.hydra
     sweep = directory.Sweep(Path(hc.sweep.dir), idx, tuple(hc.overrides.task), str(hc.sweep.subdir))
+    out = sweep.dir / sweep.subdir
+    if state == "done" and directory.status(out) == "done":
+        try:
+            value = directory.read_summary(out).get("objective")
+            ret.status, ret.return_value = JobStatus.COMPLETED, float("nan") if value is None else float(value)
+            return ret
+        except (OSError, ValueError, TypeError):
+            pass
     directory.record(sweep, "failed", f"{type(error).__name__}: {error}")
+    return ret
+
+
+def _states(sweep: Path) -> dict[int, str]:
+    """Each job's last state in the sweep's manifest."""
+    try:
+        from zrp_ga.run import directory
+    except ImportError:
+        return {}
+    return {int(s["job"]): s["status"] for s in directory.job_states(sweep)}
