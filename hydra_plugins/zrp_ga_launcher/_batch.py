@@ -25,6 +25,7 @@ import contextlib
 import copy
 import logging
 import os
+import pickle
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -33,18 +34,18 @@ import yaml
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.utils import JobReturn, JobRuntime, JobStatus, configure_log, env_override, run_job, setup_globals
 from hydra.types import HydraContext, TaskFunction
-from omegaconf import DictConfig, OmegaConf, open_dict, read_write
+from omegaconf import DictConfig, ListConfig, OmegaConf, open_dict, read_write
 
 log = logging.getLogger(__name__)
 
 
 def run_batch(jobs: list[tuple[int, DictConfig]], hydra_context: HydraContext, task_function: TaskFunction) -> list[JobReturn]:
-    """Run the sweep's jobs ``(job number, composed config)``, their runs together; a
+    """Run the sweep's jobs ``(job number, composed config or its pickle)``, their runs together; a
     ``JobReturn`` per job, in order, as Hydra's ``run_job`` makes it. Raises KeyboardInterrupt
     (at Ctrl-C) once every job recorded its state."""
     setup_globals()  # Hydra's resolvers (a fresh process)
     if not is_zrp_ga(task_function):
-        return [run_alone(idx, cfg, hydra_context, task_function) for idx, cfg in jobs]
+        return [run_alone(idx, pickle.loads(cfg) if isinstance(cfg, bytes) else cfg, hydra_context, task_function) for idx, cfg in jobs]
     return _Batch(jobs, hydra_context, task_function).run()
 
 
@@ -69,24 +70,66 @@ def _number(config: DictConfig, idx: int) -> None:
 
 
 # --- the .hydra records --------------------------------------------------------------------------------
-class _Dumper(getattr(yaml, "CDumper", yaml.Dumper)):  # type: ignore[misc]
-    """OmegaConf's YAML dumper (``OmegaConf.to_yaml``: strings that read as another type
-    quoted), on libyaml's emitter when PyYAML has it."""
+class _Dumper(yaml.Dumper):
+    """OmegaConf's YAML dumper (``OmegaConf.to_yaml``): strings that would read back as
+    another type quoted."""
+
+
+YAML_BOOLS = frozenset(["y", "Y", "yes", "Yes", "YES", "n", "N", "no", "No", "NO", "true", "True", "TRUE", "false", "False", "FALSE", "on", "On", "ON", "off", "Off", "OFF"])
 
 
 def _str_representer(dumper: Any, data: str) -> Any:
-    from omegaconf._utils import is_float, is_int, yaml_is_bool  # the rules OmegaConf's dumper applies
-
-    quoted = yaml_is_bool(data) or is_int(data) or is_float(data)
+    """A string as OmegaConf's dumper writes it: quoted when it would read back as a bool
+    (YAML 1.1's), an int or a float."""
+    quoted = data in YAML_BOOLS or _reads_as(int, data) or _reads_as(float, data)
     return dumper.represent_scalar(yaml.resolver.BaseResolver.DEFAULT_SCALAR_TAG, data, style=("'" if quoted else None))
 
 
+def _reads_as(kind: type, data: str) -> bool:
+    try:
+        kind(data)
+        return True
+    except ValueError:
+        return False
+
+
 _Dumper.add_representer(str, _str_representer)
+_TEXTS: dict[tuple, str] = {}  # (parent keys, key, repr of the value) -> its YAML lines
+_TEXTS_MAX = 4096
 
 
-def to_yaml(cfg: Any) -> str:
-    """``OmegaConf.to_yaml(cfg)``, faster."""
-    container = OmegaConf.to_container(cfg, resolve=False, enum_to_str=True)
+def to_yaml(container: Any) -> str:
+    """``OmegaConf.to_yaml(cfg)`` of the container ``OmegaConf.to_container(cfg, enum_to_str=True)``,
+    the same text, made faster. In block style a mapping's text is its entries' texts one after
+    another, and the text of an entry depends only on the keys above it and its value: each
+    entry's text is kept and reused by the next jobs (the jobs of a sweep differ in a few
+    values), and the entries of a mapping not seen before are written one by one, the same way."""
+    if not isinstance(container, dict) or not container:
+        return _dump(container)
+    return "".join(_entry((), k, v) for k, v in container.items())
+
+
+def _entry(parents: tuple, key: Any, value: Any) -> str:
+    """The YAML lines of ``key: value`` inside the mappings ``parents`` (whose own lines are cut)."""
+    cache_key = (parents, key, repr(value))
+    text = _TEXTS.get(cache_key)
+    if text is None:
+        if isinstance(value, dict) and value and isinstance(key, str):
+            head = _entry(parents, key, {})  # "<indent>key: {}"
+            assert head.endswith(" {}\n"), head
+            text = head[: -len(" {}\n")] + "\n" + "".join(_entry((*parents, key), k, v) for k, v in value.items())
+        else:
+            nested: Any = {key: value}
+            for p in reversed(parents):
+                nested = {p: nested}
+            text = _dump(nested).split("\n", len(parents))[-1]
+        if len(_TEXTS) >= _TEXTS_MAX:
+            _TEXTS.clear()
+        _TEXTS[cache_key] = text
+    return text
+
+
+def _dump(container: Any) -> str:
     return yaml.dump(container, Dumper=_Dumper, default_flow_style=False, allow_unicode=True, sort_keys=False)
 
 
@@ -142,51 +185,91 @@ def _job_logs(handlers: dict[str, logging.Handler], confs: list[dict]) -> tuple[
     return varying, out
 
 
+def _interpolations(raw: Any, path: tuple = ()) -> Iterator[tuple]:
+    """The paths of the interpolations in the container ``raw`` (unresolved)."""
+    if isinstance(raw, dict):
+        for k, v in raw.items():
+            yield from _interpolations(v, (*path, k))
+    elif isinstance(raw, list):
+        for i, v in enumerate(raw):
+            yield from _interpolations(v, (*path, i))
+    elif isinstance(raw, str) and "${" in raw:
+        yield path
+
+
+def _resolve(node: DictConfig, like: dict, paths: list[tuple]) -> dict:
+    """``OmegaConf.to_container(node, resolve=True)`` of a ``node`` whose text (unresolved) is
+    that of the resolved ``like``'s node, and whose interpolations are at ``paths``: ``like``
+    with those resolved in ``node``."""
+    out = copy.deepcopy(like)
+    for path in paths:
+        value: Any = node
+        for k in path:
+            value = value[k]
+        if isinstance(value, (DictConfig, ListConfig)):
+            value = OmegaConf.to_container(value, resolve=True)
+        target = out
+        for k in path[:-1]:
+            target = target[k]
+        target[path[-1]] = value
+    return out
+
+
 # --- the batch -----------------------------------------------------------------------------------------
 class _Job:
-    """One job of the batch: its configs, Hydra's view of it, its directory and return."""
+    """One job of the batch: its configs, its directory, its log files and its return."""
 
-    def __init__(self, idx: int, config: DictConfig):
-        self.idx, self.config = idx, config
+    def __init__(self, idx: int, config: DictConfig | bytes):
+        self.data = config if isinstance(config, bytes) else None  # the config, pickled
+        self.idx, self.config = idx, pickle.loads(config) if isinstance(config, bytes) else config
         self.ret = JobReturn()
-        self.hydra: Any = None  # HydraConfig's config of this job
-        self.out: Path | None = None
+        self.out = Path()
         self.logs: list[_JobLog] = []
         self.error: Exception | None = None
+        self.chdir, self.env = False, {}
+        self.hydra: dict = {}  # its hydra node, as a container (unresolved)
 
     def prepare(self) -> None:
-        """As ``run_job`` before the task: the config numbered, its output directory, Hydra's
-        view of it, the task's config, the directory made and the ``.hydra`` records written."""
+        """As ``run_job`` before the task: the config numbered, its output directory, the
+        task's config, the directory made and the ``.hydra`` records written. Hydra's view of
+        the job (``HydraConfig``) is its config itself, whose ``hydra`` node is then read-only
+        (as ``HydraConfig.set_config`` leaves it)."""
         config = self.config
         _number(config, self.idx)
-        HydraConfig.instance().set_config(config)
-        output_dir = os.path.join(str(OmegaConf.select(config, "hydra.sweep.dir")), str(OmegaConf.select(config, "hydra.sweep.subdir")))
+        instance = HydraConfig.instance()
+        before, instance.cfg = instance.cfg, config
+        try:
+            output_dir = os.path.join(str(OmegaConf.select(config, "hydra.sweep.dir")),
+                                      str(OmegaConf.select(config, "hydra.sweep.subdir")))  # fmt: skip
+        finally:
+            instance.cfg = before
         with read_write(config.hydra.runtime), open_dict(config.hydra.runtime):
             config.hydra.runtime.output_dir = os.path.abspath(output_dir)
-        HydraConfig.instance().set_config(config)
-        self.hydra = HydraConfig.instance().cfg
+        OmegaConf.set_readonly(config.hydra, True)
         self.out = Path(output_dir)
-        task_cfg = copy.deepcopy(config)
+        task_cfg = pickle.loads(self.data if self.data is not None else pickle.dumps(config))  # faster than copy.deepcopy
         with read_write(task_cfg), open_dict(task_cfg):
             del task_cfg["hydra"]
-        self.ret.cfg, self.ret.hydra_cfg = task_cfg, self.hydra
-        self.ret.overrides = OmegaConf.to_container(config.hydra.overrides.task)
+        # Hydra's view of the job (HydraConfig's config): the config itself, rather than a copy of its hydra node
+        self.ret.cfg, self.ret.hydra_cfg = task_cfg, config
+        self.hydra = hydra = OmegaConf.to_container(config.hydra, resolve=False, enum_to_str=True)
+        self.ret.overrides = list(hydra["overrides"]["task"])
         self.out.mkdir(parents=True, exist_ok=True)
-        self.chdir = bool(config.hydra.job.chdir)
+        self.chdir = bool(hydra["job"]["chdir"])
         self.ret.working_dir = output_dir if self.chdir else os.getcwd()
         self.env = dict(config.hydra.job.env_set)
-        if config.hydra.output_subdir is not None:
-            records = Path(config.hydra.runtime.output_dir) / str(config.hydra.output_subdir)
+        if hydra["output_subdir"] is not None:
+            records = Path(hydra["runtime"]["output_dir"]) / str(config.hydra.output_subdir)
             records.mkdir(parents=True, exist_ok=True)
-            _save(to_yaml(task_cfg), records / "config.yaml")
-            _save(to_yaml(self.hydra), records / "hydra.yaml")
-            _save(to_yaml(config.hydra.overrides.task), records / "overrides.yaml")
+            _save(to_yaml(OmegaConf.to_container(task_cfg, resolve=False, enum_to_str=True)), records / "config.yaml")
+            _save(to_yaml({"hydra": hydra}), records / "hydra.yaml")
+            _save(to_yaml(hydra["overrides"]["task"]), records / "overrides.yaml")
 
     @contextlib.contextmanager
     def around(self) -> Iterator[None]:
         """Hydra's view of this job and its log file, while something is done for it alone."""
         instance = HydraConfig.instance()
-        before, instance.cfg = instance.cfg, self.hydra
+        before, instance.cfg = instance.cfg, self.config
         root = logging.getLogger()
         for h in self.logs:
             root.addHandler(h)
@@ -252,9 +335,14 @@ class _Batch:
         if first.config.hydra.job_logging is None:
             return True
         confs = []
-        for job in ready:
+        with first.around():
+            confs.append(OmegaConf.to_container(first.config.hydra.job_logging, resolve=True))
+        raw = first.hydra["job_logging"]
+        paths = list(_interpolations(raw))
+        for job in ready[1:]:
             with job.around():
-                confs.append(OmegaConf.to_container(job.config.hydra.job_logging, resolve=True))
+                confs.append(_resolve(job.config.hydra.job_logging, confs[0], paths) if job.hydra["job_logging"] == raw
+                             else OmegaConf.to_container(job.config.hydra.job_logging, resolve=True))  # fmt: skip
         root = logging.getLogger()
         handlers = {h.name: h for h in root.handlers if h.name}
         found = _job_logs(handlers, confs)

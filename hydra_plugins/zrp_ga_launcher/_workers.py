@@ -99,8 +99,7 @@ def _serve(conn: Any, start: _Start) -> None:
                 return
             together, batch = message
             if together:  # their runs evolved together
-                configs = [(idx, pickle.loads(data)) for idx, data in batch]
-                for (idx, _), ret in zip(batch, _batch.run_batch(configs, start.hydra_context, task_function)):
+                for (idx, _), ret in zip(batch, _batch.run_batch(batch, start.hydra_context, task_function)):
                     conn.send_bytes(_dump_return(idx, ret))
                 continue
             for idx, data in batch:
