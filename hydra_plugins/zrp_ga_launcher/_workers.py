@@ -283,12 +283,15 @@ class _Dispatcher:
         self.progress = SweepProgress(len(self.overrides), bool(launcher.config.get("progress", True)))
         self.together = bool(launcher.settings.lockstep) and _batch.is_zrp_ga(launcher.task_function)
         self.pending: dict[str, list] = {}  # batch key -> jobs composed, not sent yet
+        self.alone: collections.deque = collections.deque()  # jobs without a key, composed, not sent yet
+        self.waiting = 0  # jobs composed, not sent yet
         self.size = batch_size(len(todo), len(pool.workers))
+        self.limit = self.size * len(pool.workers) * AHEAD  # jobs composed ahead at most
 
     def show_progress(self, close: bool = False) -> None:
-        """The progress line (``_progress``): jobs ended, failed, running (a worker runs one at a time)."""
+        """The progress line (``_progress``): jobs ended, failed, running (a worker's first batch)."""
         failed = sum(r.status == JobStatus.FAILED for r in self.returns.values())
-        running = sum(bool(w.batches) for w in self.pool.workers)
+        running = sum(len(w.batches[0]) for w in self.pool.workers if w.batches)
         (self.progress.close if close else self.progress.show)(len(self.returns), failed, 0 if close else running)
 
     def run(self) -> dict[int, JobReturn]:
@@ -299,10 +302,14 @@ class _Dispatcher:
             handles = {}
             for w in self.pool.workers:
                 handles[w.conn] = handles[w.process.sentinel] = w
-            for handle in wait(list(handles), timeout=self.launcher.settings.table_every_s):
+            ahead = self.together and self.todo and self.waiting < self.limit  # compose while the workers work
+            ready = wait(list(handles), timeout=0 if ahead else self.launcher.settings.table_every_s)
+            for handle in ready:
                 w = handles[handle]
                 if w in self.pool.workers:
                     self.receive(w) if handle is w.conn else self.lost(w)
+            if ahead and not ready:
+                self.compose_next()
             if time.monotonic() - self.table_at > self.launcher.settings.table_every_s:
                 self.write_table()
         return self.returns
@@ -320,33 +327,42 @@ class _Dispatcher:
 
     def next_batch(self) -> tuple[bool, list[tuple[int, list[str], bytes]]]:
         """Whether the jobs of the next batch run together, and its jobs (number, overrides,
-        pickled config). Together: jobs of the same ``batch_key``, ``self.size`` of them (fewer
-        at the end of the sweep); else ``batch_size`` jobs one after another."""
+        pickled config). Together: jobs of the same ``batch_key``, ``self.size`` of them, or
+        fewer when ``self.limit`` jobs wait composed (then those of the key with the most) and
+        at the end of the sweep; a job without a key alone; with ``lockstep=false``
+        ``batch_size`` jobs one after another."""
         if not self.together:
             batch = [self.todo.popleft() for _ in range(min(self.launcher.settings.batch_size, len(self.todo)))]
             return False, [(idx, overrides, pickle.dumps(self.compose(overrides))) for idx, overrides in batch]
         while True:
+            if self.alone:
+                self.waiting -= 1
+                return False, [self.alone.popleft()]
             full = next((key for key, jobs in self.pending.items() if len(jobs) >= self.size), None)
             if full is not None:
                 return True, self._pop(full)
-            if not self.todo:
+            if not self.todo or self.waiting >= self.limit:
                 break
-            idx, overrides = self.todo.popleft()
-            config = self.compose(overrides)
-            key = self.key(config)
-            job = (idx, overrides, pickle.dumps(config))
-            if key is None:
-                return False, [job]
-            self.pending.setdefault(key, []).append(job)
+            self.compose_next()
         if not self.pending:
             return False, []
         return True, self._pop(max(self.pending, key=lambda k: len(self.pending[k])))
+
+    def compose_next(self) -> None:
+        """Compose the next job and put it with those of its batch key (or alone)."""
+        idx, overrides = self.todo.popleft()
+        config = self.compose(overrides)
+        key = self.key(config)
+        job = (idx, overrides, pickle.dumps(config))
+        self.alone.append(job) if key is None else self.pending.setdefault(key, []).append(job)
+        self.waiting += 1
 
     def _pop(self, key: str) -> list:
         jobs = self.pending[key]
         batch, self.pending[key] = jobs[: self.size], jobs[self.size :]
         if not self.pending[key]:
             del self.pending[key]
+        self.waiting -= len(batch)
         return batch
 
     @staticmethod
