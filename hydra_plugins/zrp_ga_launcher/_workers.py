@@ -4,18 +4,25 @@ Each worker is started once per sweep and warmed up once: where processes are fo
 the sweep's process calls the warm-up function with the sweep's config (the app's modules, its
 compiled code, the first problem instance) and the workers are forked from it, sharing all
 that; elsewhere each spawned worker warms itself up while the sweeper checks the jobs. A
-worker runs the jobs it is sent, one batch after another, each through Hydra's ``run_job`` as
-Hydra's own launchers do, and sends each job's ``JobReturn`` back as soon as it ends.
+worker runs the batches it is sent, one after another. Jobs that can be evolved together (the
+same ``zrp_ga.run.execute.batch_key``: GA runs on one problem instance with one population
+shape) come as one batch, run by :func:`._batch.run_batch` with their runs in one call of the
+run layer; other jobs (and all with ``hydra.launcher.lockstep=false``) one at a time through
+Hydra's ``run_job``, as Hydra's own launchers run them. Each job's ``JobReturn`` goes back as
+soon as it is known.
 
-The driver (:func:`launch`) composes each job's config when a worker needs work, keeps every
-worker two batches ahead, collects the returns in job order, and rewrites the manifest table
-now and then. A worker that dies (killed, out of memory) fails its unfinished jobs, which are
-recorded in the manifest, and another takes its place. At Ctrl-C every process of the sweep
-gets the signal: each worker's job saves its checkpoint and records ``interrupted``, the driver
-waits for them (and signals any worker that did not get it) before it raises
-``KeyboardInterrupt`` to the console script. Workers die with the driver (Linux: the kernel
-kills them; elsewhere they stop at their next job), so that a sweep killed and started again
-never has two processes writing one job's files.
+The driver (:func:`launch`) composes the jobs' configs ahead while the workers run and groups
+them by batch key: a batch is ``batch_size`` jobs of one key (enough for every worker to get a
+few; fewer at the end, or when too many wait composed), a job without a key goes alone. A
+worker holds one batch of jobs run together (two of other jobs: one running, one waiting).
+The driver collects the returns in job order and rewrites the manifest table now and then. A
+worker that dies (killed, out of memory) fails its unfinished jobs, which are recorded in the
+manifest (but for runs of its batch that had ended), and another takes its place. At Ctrl-C
+every process of the sweep gets the signal: each worker's jobs save their checkpoints and
+record ``interrupted``, the driver waits for them (and signals any worker that did not get it)
+before it raises ``KeyboardInterrupt`` to the console script. Workers die with the driver
+(Linux: the kernel kills them; elsewhere they stop at their next batch), so that a sweep killed
+and started again never has two processes writing one job's files.
 """
 
 from __future__ import annotations
@@ -37,6 +44,7 @@ from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any
 
+from hydra.core.hydra_config import HydraConfig
 from hydra.core.singleton import Singleton
 from hydra.core.utils import JobReturn, JobStatus, configure_log, filter_overrides, setup_globals
 from hydra.types import HydraContext, TaskFunction
@@ -251,6 +259,8 @@ def launch(launcher: Any, job_overrides: Sequence[Sequence[str]], initial_job_id
     """Run the jobs on the launcher's workers; their returns in job order."""
     setup_globals()
     configure_log(launcher.config.hydra.hydra_logging, launcher.config.hydra.verbose)
+    if not HydraConfig.initialized():  # Hydra's view of the sweep, in this process too (where Ctrl-C is reported)
+        HydraConfig.instance().set_config(launcher.config)
     sweep = Path(str(launcher.config.hydra.sweep.dir))
     sweep.mkdir(parents=True, exist_ok=True)
     pool: Pool = launcher.pool
@@ -286,7 +296,7 @@ class _Dispatcher:
         self.alone: collections.deque = collections.deque()  # jobs without a key, composed, not sent yet
         self.waiting = 0  # jobs composed, not sent yet
         self.size = batch_size(len(todo), len(pool.workers))
-        self.limit = self.size * len(pool.workers) * AHEAD  # jobs composed ahead at most
+        self.limit = self.size * len(pool.workers) * 2  # jobs composed ahead at most
 
     def show_progress(self, close: bool = False) -> None:
         """The progress line (``_progress``): jobs ended, failed, running (a worker's first batch)."""
@@ -315,8 +325,9 @@ class _Dispatcher:
         return self.returns
 
     def feed(self, w: _Worker) -> None:
-        """Send ``w`` batches until it holds ``AHEAD``."""
-        while len(w.batches) < AHEAD:
+        """Send ``w`` batches until it holds ``AHEAD`` (batches of jobs run together: one, so
+        that no batch waits behind another while a worker is idle)."""
+        while len(w.batches) < (1 if self.together else AHEAD):
             together, batch = self.next_batch()
             if not batch:
                 return
