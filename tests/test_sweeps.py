@@ -451,3 +451,67 @@ def test_yaml_records_are_omegaconfs_text(hydra_loader):
                             "j": [{"k": "off"}, "1e3"], "l": "a long text " * 20 + "\n with lines\n", "m": None, 3: 4.0})  # fmt: skip
     for _ in range(2):  # the second time from the kept texts
         assert _batch.to_yaml(OmegaConf.to_container(odd)) == OmegaConf.to_yaml(odd)
+
+
+RUN_BATCH = r"""
+import json, pickle, sys
+from pathlib import Path
+from hydra import initialize_config_module
+from hydra.core.global_hydra import GlobalHydra
+from hydra.core.hydra_config import HydraConfig
+from hydra.core.utils import run_job
+from hydra.types import HydraContext, RunMode
+from zrp_ga import cli, config
+from hydra_plugins.zrp_ga_launcher import _batch
+
+calls = []
+
+
+class Recorder:
+    def on_job_start(self, config, task_function, **kw):
+        calls.append(["start", config.hydra.job.num, HydraConfig.get().job.num, task_function.__name__])
+
+    def on_job_end(self, config, job_return, **kw):
+        calls.append(["end", config.hydra.job.num, HydraConfig.get().job.num, job_return.status.name])
+
+
+config.register()
+jobs = [sys.argv[3:] + o for o in (["crossover=sbx"], ["crossover=blend"], ["algorithm.elite=999"])]
+base = sys.argv[3:] + ["hydra.mode=MULTIRUN"]
+with initialize_config_module("zrp_ga.conf", **config.hydra_options()):
+    loader = GlobalHydra.instance().hydra.config_loader
+    ours, theirs = (loader.load_configuration("config", base + [f"hydra.sweep.dir={d}"], RunMode.MULTIRUN) for d in sys.argv[1:3])
+    configs = [(k, loader.load_sweep_config(ours, o)) for k, o in enumerate(jobs)]
+    alone = loader.load_sweep_config(theirs, jobs[0])
+context = HydraContext(config_loader=None, callbacks=Recorder())
+returns = _batch.run_batch(configs, context, cli.main.__wrapped__)
+with_hydra = run_job(hydra_context=context, task_function=cli.main.__wrapped__, config=_batch._numbered(alone, 0),
+                     job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
+print(json.dumps({"calls": calls, "returns": [[r.status.name, r.overrides, repr(r._return_value), r.task_name, r.working_dir]
+                                              for r in returns], "run_job": with_hydra.status.name}))
+"""
+
+
+def test_run_batch_in_a_fresh_process_does_what_run_job_does(tmp_path):
+    """``_batch.run_batch`` with configs composed in a process that ran no Hydra app (as a
+    cluster's job gets them): each job's return (status, return value, overrides), callbacks
+    seeing the job, and ``.hydra`` records with the text Hydra's ``run_job`` writes."""
+    ours, theirs = tmp_path / "ours", tmp_path / "theirs"
+    common = ["seed=3", *SMALL, "population.generations=4"]
+    proc = subprocess.run([sys.executable, "-c", RUN_BATCH, str(ours), str(theirs), *common], capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.splitlines()[-1])
+    assert out["run_job"] == "COMPLETED"
+    assert out["calls"] == [["start", k, k, "main"] for k in range(3)] + [["end", 0, 0, "COMPLETED"], ["end", 1, 1, "COMPLETED"],
+                                                                           ["end", 2, 2, "FAILED"], ["start", 0, 0, "main"],
+                                                                           ["end", 0, 0, "COMPLETED"]]  # fmt: skip
+    for k, (status, overrides, value, task_name, working_dir) in enumerate(out["returns"][:2]):
+        objective = json.loads((ours / str(k) / "summary.json").read_text())["objective"]
+        assert status == "COMPLETED" and value == repr(objective) and working_dir == str(tmp_path)
+        assert overrides == [*common, ["crossover=sbx", "crossover=blend"][k]]
+    assert out["returns"][2][0] == "FAILED" and "algorithm.elite: must be in [0, population.mu = 30], got 999" in out["returns"][2][2]
+    assert read_manifest(ours)["status"].tolist() == ["done", "done", "failed"]
+    for name in ("config.yaml", "overrides.yaml"):
+        assert (ours / "0/.hydra" / name).read_text() == (theirs / "0/.hydra" / name).read_text(), name
+    assert (ours / "0/.hydra/hydra.yaml").read_text().replace(str(ours), str(theirs)) == (theirs / "0/.hydra/hydra.yaml").read_text()
+    assert _log_lines(ours / "0") == _log_lines(theirs / "0") and (ours / "2" / "zrp-ga.log").exists()

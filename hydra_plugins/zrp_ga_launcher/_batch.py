@@ -69,6 +69,11 @@ def _number(config: DictConfig, idx: int) -> None:
         config.hydra.job.num = idx
 
 
+def _numbered(config: DictConfig, idx: int) -> DictConfig:
+    _number(config, idx)
+    return config
+
+
 # --- the .hydra records --------------------------------------------------------------------------------
 class _Dumper(yaml.Dumper):
     """OmegaConf's YAML dumper (``OmegaConf.to_yaml``): strings that would read back as
