@@ -220,6 +220,17 @@ def _resolve(node: DictConfig, like: dict, paths: list[tuple]) -> dict:
     return out
 
 
+def _sweep_job_args(hc: Any) -> tuple[Path, Any, dict]:
+    """A job of a sweep as the run layer takes it (``execute.sweep_job``: its directory, its
+    place in the sweep, the groups' options), from Hydra's config of the job, as
+    ``zrp_ga.cli.main`` makes them (not imported from there: the command line imports this
+    launcher)."""
+    from zrp_ga.run.directory import Sweep
+
+    sweep = Sweep(Path(hc.sweep.dir), int(hc.job.num), tuple(hc.overrides.task), str(hc.sweep.subdir))
+    return Path(hc.runtime.output_dir), sweep, dict(hc.runtime.choices)
+
+
 # --- the batch -----------------------------------------------------------------------------------------
 class _Job:
     """One job of the batch: its configs, its directory, its log files and its return."""
@@ -365,13 +376,12 @@ class _Batch:
 
     def sweep(self, ready: list[_Job]) -> list[Any]:
         """The runs, together (``zrp_ga.cli.main``'s part, but the console line)."""
-        from zrp_ga.cli import sweep_job_args
         from zrp_ga.run import execute
 
         tasks = []
         for job in ready:
             with job.around():
-                tasks.append((job.ret.cfg, *sweep_job_args(HydraConfig.get())))
+                tasks.append((job.ret.cfg, *_sweep_job_args(HydraConfig.get())))
         return execute.sweep_batch(tasks, around=lambda k: ready[k].around()) if tasks else []
 
     def end(self, job: _Job, value: Any) -> None:

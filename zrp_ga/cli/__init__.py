@@ -35,29 +35,21 @@ def main(cfg: DictConfig) -> float:
 
     from zrp_ga import summary
     from zrp_ga.run import build, execute
+    from zrp_ga.run.directory import Sweep
 
     hc = HydraConfig.get()
     out = Path(hc.runtime.output_dir)
     choices = dict(hc.runtime.choices)
     overrides = list(hc.overrides.task)
     if hc.mode == RunMode.MULTIRUN:
-        objective = execute.sweep_job(cfg, *sweep_job_args(hc))
+        sweep = Sweep(Path(hc.sweep.dir), int(hc.job.num), tuple(overrides), str(hc.sweep.subdir))
+        objective = execute.sweep_job(cfg, out, sweep, choices)
         summary.console(out, (hc.job.num, " ".join(overrides)))
     else:
         p = build.prepare(cfg, out, overrides, choices)
         objective = execute.objective(execute.run_prepared(p, bool(cfg.progress)))
         summary.console(p.out)
     return objective
-
-
-def sweep_job_args(hc: Any) -> tuple[Path, Any, dict]:
-    """A job of a sweep as the run layer takes it (:func:`zrp_ga.run.execute.sweep_job`), from
-    Hydra's config of the job (``HydraConfig.get()``): its directory, its place in the sweep, the
-    groups' options."""
-    from zrp_ga.run.directory import Sweep
-
-    sweep = Sweep(Path(hc.sweep.dir), int(hc.job.num), tuple(hc.overrides.task), str(hc.sweep.subdir))
-    return Path(hc.runtime.output_dir), sweep, dict(hc.runtime.choices)
 
 
 def cli() -> None:
