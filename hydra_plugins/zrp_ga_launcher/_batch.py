@@ -1,16 +1,416 @@
-"""A batch of a sweep's jobs run in one process (minimal: one after another, each with Hydra's
-``run_job`` as ``_workers`` runs it)."""
+"""Jobs of a sweep run together: each keeps what Hydra's ``run_job`` gives it, and their runs
+go through one call of :func:`zrp_ga.run.execute.sweep_batch`, which evolves them together.
+
+For each job, as ``run_job`` does it: its output directory, the three ``.hydra`` records
+(``config.yaml``, ``hydra.yaml``, ``overrides.yaml``: the same text Hydra writes), Hydra's view
+of the job (``HydraConfig``, its ``env_set``, its working directory with ``hydra.job.chdir``)
+and its log file (``hydra.job_logging``) while anything is done for it alone, the callbacks'
+``on_job_start`` and ``on_job_end`` (zrp_ga's manifest, any of the user's), and a ``JobReturn``
+with its status and return value. The task's own part is that of ``zrp_ga.cli.main`` for a job
+of a sweep: the run, then the one line saying how it ended.
+
+Logging is configured once for the batch, as Hydra configures it for its first job; the
+handlers whose settings differ from job to job (the log file, named after the job's
+directory) are one per job, attached while that job's work runs (``around`` of
+``sweep_batch``) and open only while it writes.
+
+Callable in any process that got the pickled configs and ``hydra_context`` (a worker of this
+launcher, or a cluster's job): :func:`run_batch`. A task function other than ``zrp_ga.cli.main``
+runs its jobs one at a time through Hydra's ``run_job``. Hydra's public interfaces only.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
+import copy
+import logging
+import os
+import pickle
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
 
-from hydra.core.utils import JobReturn
+import yaml
+from hydra.core.hydra_config import HydraConfig
+from hydra.core.utils import JobReturn, JobRuntime, JobStatus, configure_log, env_override, run_job, setup_globals
 from hydra.types import HydraContext, TaskFunction
+from omegaconf import DictConfig, ListConfig, OmegaConf, open_dict, read_write
+
+log = logging.getLogger(__name__)
 
 
-def run_batch(jobs: Sequence[tuple[int, bytes]], hydra_context: HydraContext, task_function: TaskFunction) -> list[JobReturn]:
-    """``jobs``: (job number, pickled job config) pairs; their returns in the same order."""
-    from ._workers import _run_job
+def run_batch(jobs: list[tuple[int, DictConfig]], hydra_context: HydraContext, task_function: TaskFunction) -> list[JobReturn]:
+    """Run the sweep's jobs ``(job number, composed config or its pickle)``, their runs together; a
+    ``JobReturn`` per job, in order, as Hydra's ``run_job`` makes it. Raises KeyboardInterrupt
+    (at Ctrl-C) once every job recorded its state."""
+    setup_globals()  # Hydra's resolvers (a fresh process)
+    if not is_zrp_ga(task_function):
+        return [run_alone(idx, pickle.loads(cfg) if isinstance(cfg, bytes) else cfg, hydra_context, task_function) for idx, cfg in jobs]
+    return _Batch(jobs, hydra_context, task_function).run()
 
-    return [_run_job(idx, data, hydra_context, task_function) for idx, data in jobs]
+
+def run_alone(idx: int, config: DictConfig, hydra_context: HydraContext, task_function: TaskFunction) -> JobReturn:
+    """One job with Hydra's ``run_job``, as Hydra's basic launcher runs it."""
+    _number(config, idx)
+    return run_job(hydra_context=hydra_context, task_function=task_function, config=config,
+                   job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")  # fmt: skip
+
+
+def is_zrp_ga(task_function: Any) -> bool:
+    """Whether ``task_function`` is ``zrp_ga.cli.main`` (or the function it wraps), whose jobs
+    :func:`run_batch` runs together."""
+    fn = getattr(task_function, "__wrapped__", task_function)
+    return (getattr(fn, "__module__", None), getattr(fn, "__qualname__", None)) == ("zrp_ga.cli", "main")
+
+
+def _number(config: DictConfig, idx: int) -> None:
+    with open_dict(config):
+        config.hydra.job.id = str(idx)  # a string field
+        config.hydra.job.num = idx
+
+
+def _numbered(config: DictConfig, idx: int) -> DictConfig:
+    _number(config, idx)
+    return config
+
+
+# --- the .hydra records --------------------------------------------------------------------------------
+class _Dumper(yaml.Dumper):
+    """OmegaConf's YAML dumper (``OmegaConf.to_yaml``): strings that would read back as
+    another type quoted."""
+
+
+YAML_BOOLS = frozenset(["y", "Y", "yes", "Yes", "YES", "n", "N", "no", "No", "NO", "true", "True", "TRUE", "false", "False", "FALSE", "on", "On", "ON", "off", "Off", "OFF"])
+
+
+def _str_representer(dumper: Any, data: str) -> Any:
+    """A string as OmegaConf's dumper writes it: quoted when it would read back as a bool
+    (YAML 1.1's), an int or a float."""
+    quoted = data in YAML_BOOLS or _reads_as(int, data) or _reads_as(float, data)
+    return dumper.represent_scalar(yaml.resolver.BaseResolver.DEFAULT_SCALAR_TAG, data, style=("'" if quoted else None))
+
+
+def _reads_as(kind: type, data: str) -> bool:
+    try:
+        kind(data)
+        return True
+    except ValueError:
+        return False
+
+
+_Dumper.add_representer(str, _str_representer)
+_TEXTS: dict[tuple, str] = {}  # (parent keys, key, repr of the value) -> its YAML lines
+_TEXTS_MAX = 4096
+
+
+def to_yaml(container: Any) -> str:
+    """``OmegaConf.to_yaml(cfg)`` of the container ``OmegaConf.to_container(cfg, enum_to_str=True)``,
+    the same text, made faster. In block style a mapping's text is its entries' texts one after
+    another, and the text of an entry depends only on the keys above it and its value: each
+    entry's text is kept and reused by the next jobs (the jobs of a sweep differ in a few
+    values), and the entries of a mapping not seen before are written one by one, the same way."""
+    if not isinstance(container, dict) or not container:
+        return _dump(container)
+    return "".join(_entry((), k, v) for k, v in container.items())
+
+
+def _entry(parents: tuple, key: Any, value: Any) -> str:
+    """The YAML lines of ``key: value`` inside the mappings ``parents`` (whose own lines are cut)."""
+    cache_key = (parents, key, repr(value))
+    text = _TEXTS.get(cache_key)
+    if text is None:
+        if isinstance(value, dict) and value and isinstance(key, str):
+            head = _entry(parents, key, {})  # "<indent>key: {}"
+            assert head.endswith(" {}\n"), head
+            text = head[: -len(" {}\n")] + "\n" + "".join(_entry((*parents, key), k, v) for k, v in value.items())
+        else:
+            nested: Any = {key: value}
+            for p in reversed(parents):
+                nested = {p: nested}
+            text = _dump(nested).split("\n", len(parents))[-1]
+        if len(_TEXTS) >= _TEXTS_MAX:
+            _TEXTS.clear()
+        _TEXTS[cache_key] = text
+    return text
+
+
+def _dump(container: Any) -> str:
+    return yaml.dump(container, Dumper=_Dumper, default_flow_style=False, allow_unicode=True, sort_keys=False)
+
+
+def _save(text: str, path: Path) -> None:
+    with open(path, "w", encoding="utf-8") as f:  # as Hydra's _save_config
+        f.write(text)
+
+
+# --- a job's log file ----------------------------------------------------------------------------------
+class _JobLog(logging.FileHandler):
+    """A job's log file (a handler of ``hydra.job_logging`` whose file is the job's own), open
+    only while its job runs: :meth:`pause` closes it until the job's next line, which then
+    appends."""
+
+    def pause(self) -> None:
+        self.acquire()
+        try:
+            if self.stream is not None:
+                self.stream.close()
+                self.stream = None
+                self.mode = "a"
+        finally:
+            self.release()
+
+
+def _job_logs(handlers: dict[str, logging.Handler], confs: list[dict]) -> tuple[list[str], list[list[_JobLog]]] | None:
+    """The names of the root's handlers whose settings differ between the jobs (``confs``: each
+    job's ``hydra.job_logging``, resolved; the first one's is configured, its handlers are
+    ``handlers`` by name), and per job its own copies of them; None when the jobs' settings
+    differ in more than the name of a ``logging.FileHandler``'s file."""
+    first = confs[0]
+
+    def without(c: dict, name: str | None = None) -> dict:
+        if name is None:
+            return {**c, "handlers": sorted(c.get("handlers") or {})}
+        return {**c["handlers"][name], "filename": None}
+
+    if any(without(c) != without(first) for c in confs):
+        return None
+    varying = [name for name in first.get("handlers") or {} if any(c["handlers"][name] != first["handlers"][name] for c in confs)]
+    out: list[list[_JobLog]] = [[] for _ in confs]
+    for name in varying:
+        h = handlers.get(name)
+        if type(h) is not logging.FileHandler or any(without(c, name) != without(first, name) for c in confs):
+            return None
+        for k, c in enumerate(confs):
+            mine = _JobLog(c["handlers"][name]["filename"], mode=h.mode, encoding=h.encoding, delay=True, errors=h.errors)
+            mine.setLevel(h.level)
+            mine.setFormatter(h.formatter)
+            for f in h.filters:
+                mine.addFilter(f)
+            out[k].append(mine)
+    return varying, out
+
+
+def _interpolations(raw: Any, path: tuple = ()) -> Iterator[tuple]:
+    """The paths of the interpolations in the container ``raw`` (unresolved)."""
+    if isinstance(raw, dict):
+        for k, v in raw.items():
+            yield from _interpolations(v, (*path, k))
+    elif isinstance(raw, list):
+        for i, v in enumerate(raw):
+            yield from _interpolations(v, (*path, i))
+    elif isinstance(raw, str) and "${" in raw:
+        yield path
+
+
+def _resolve(node: DictConfig, like: dict, paths: list[tuple]) -> dict:
+    """``OmegaConf.to_container(node, resolve=True)`` of a ``node`` whose text (unresolved) is
+    that of the resolved ``like``'s node, and whose interpolations are at ``paths``: ``like``
+    with those resolved in ``node``."""
+    out = copy.deepcopy(like)
+    for path in paths:
+        value: Any = node
+        for k in path:
+            value = value[k]
+        if isinstance(value, (DictConfig, ListConfig)):
+            value = OmegaConf.to_container(value, resolve=True)
+        target = out
+        for k in path[:-1]:
+            target = target[k]
+        target[path[-1]] = value
+    return out
+
+
+def _sweep_job_args(hc: Any) -> tuple[Path, Any, dict]:
+    """A job of a sweep as the run layer takes it (``execute.sweep_job``: its directory, its
+    place in the sweep, the groups' options), from Hydra's config of the job, as
+    ``zrp_ga.cli.main`` makes them (not imported from there: the command line imports this
+    launcher)."""
+    from zrp_ga.run.directory import Sweep
+
+    sweep = Sweep(Path(hc.sweep.dir), int(hc.job.num), tuple(hc.overrides.task), str(hc.sweep.subdir))
+    return Path(hc.runtime.output_dir), sweep, dict(hc.runtime.choices)
+
+
+# --- the batch -----------------------------------------------------------------------------------------
+class _Job:
+    """One job of the batch: its configs, its directory, its log files and its return."""
+
+    def __init__(self, idx: int, config: DictConfig | bytes):
+        self.data = config if isinstance(config, bytes) else None  # the config, pickled
+        self.idx, self.config = idx, pickle.loads(config) if isinstance(config, bytes) else config
+        self.ret = JobReturn()
+        self.out = Path()
+        self.logs: list[_JobLog] = []
+        self.error: Exception | None = None
+        self.chdir, self.env = False, {}
+        self.hydra: dict = {}  # its hydra node, as a container (unresolved)
+
+    def prepare(self) -> None:
+        """As ``run_job`` before the task: the config numbered, its output directory, the
+        task's config, the directory made and the ``.hydra`` records written. Hydra's view of
+        the job (``HydraConfig``) is its config itself, whose ``hydra`` node is then read-only
+        (as ``HydraConfig.set_config`` leaves it)."""
+        config = self.config
+        _number(config, self.idx)
+        instance = HydraConfig.instance()
+        before, instance.cfg = instance.cfg, config
+        try:
+            output_dir = os.path.join(str(OmegaConf.select(config, "hydra.sweep.dir")),
+                                      str(OmegaConf.select(config, "hydra.sweep.subdir")))  # fmt: skip
+        finally:
+            instance.cfg = before
+        with read_write(config.hydra.runtime), open_dict(config.hydra.runtime):
+            config.hydra.runtime.output_dir = os.path.abspath(output_dir)
+        OmegaConf.set_readonly(config.hydra, True)
+        self.out = Path(output_dir)
+        task_cfg = pickle.loads(self.data if self.data is not None else pickle.dumps(config))  # faster than copy.deepcopy
+        with read_write(task_cfg), open_dict(task_cfg):
+            del task_cfg["hydra"]
+        # Hydra's view of the job (HydraConfig's config): the config itself, rather than a copy of its hydra node
+        self.ret.cfg, self.ret.hydra_cfg = task_cfg, config
+        self.hydra = hydra = OmegaConf.to_container(config.hydra, resolve=False, enum_to_str=True)
+        self.ret.overrides = list(hydra["overrides"]["task"])
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.chdir = bool(hydra["job"]["chdir"])
+        self.ret.working_dir = output_dir if self.chdir else os.getcwd()
+        self.env = dict(config.hydra.job.env_set)
+        if hydra["output_subdir"] is not None:
+            records = Path(hydra["runtime"]["output_dir"]) / str(config.hydra.output_subdir)
+            records.mkdir(parents=True, exist_ok=True)
+            _save(to_yaml(OmegaConf.to_container(task_cfg, resolve=False, enum_to_str=True)), records / "config.yaml")
+            _save(to_yaml({"hydra": hydra}), records / "hydra.yaml")
+            _save(to_yaml(hydra["overrides"]["task"]), records / "overrides.yaml")
+
+    @contextlib.contextmanager
+    def around(self) -> Iterator[None]:
+        """Hydra's view of this job and its log file, while something is done for it alone."""
+        instance = HydraConfig.instance()
+        before, instance.cfg = instance.cfg, self.config
+        root = logging.getLogger()
+        for h in self.logs:
+            root.addHandler(h)
+        cwd = os.getcwd() if self.chdir else None
+        if cwd is not None:
+            os.chdir(self.out)
+        try:
+            with env_override(self.env) if self.env else contextlib.nullcontext():
+                yield
+        finally:
+            if cwd is not None:
+                os.chdir(cwd)
+            for h in self.logs:
+                root.removeHandler(h)
+                h.pause()
+            instance.cfg = before
+
+
+class _Batch:
+    def __init__(self, jobs: list[tuple[int, DictConfig]], hydra_context: HydraContext, task_function: TaskFunction):
+        self.jobs = [_Job(idx, cfg) for idx, cfg in jobs]
+        self.hydra_context, self.task_function = hydra_context, task_function
+
+    def run(self) -> list[JobReturn]:
+        from zrp_ga.run import directory
+
+        instance = HydraConfig.instance()
+        before = instance.cfg
+        try:
+            for job in self.jobs:
+                try:
+                    job.prepare()
+                except Exception as exc:  # a bad config value, a directory that cannot be made
+                    job.error = exc
+            ready = [j for j in self.jobs if j.error is None]
+            if not self.logging(ready):
+                for job in ready:
+                    job.ret = run_alone(job.idx, job.config, self.hydra_context, self.task_function)
+                ready = []
+            for job in ready:
+                with job.around():
+                    self.hydra_context.callbacks.on_job_start(config=job.config, task_function=self.task_function)
+            values = self.sweep(ready)
+            for job, value in zip(ready, values):
+                with job.around():
+                    self.end(job, value)
+            for job in self.jobs:
+                if job.error is not None:
+                    self.failed_before(job, directory)
+        finally:
+            instance.cfg = before
+        return [job.ret for job in self.jobs]
+
+    def logging(self, ready: list[_Job]) -> bool:
+        """Hydra's job logging, configured for the first job, with each job's own log files;
+        False when the jobs' logging settings differ in more than their files' names (then
+        each job runs alone, with its own)."""
+        if not ready:
+            return True
+        first = ready[0]
+        with first.around():
+            configure_log(first.config.hydra.job_logging, first.config.hydra.verbose)
+        if first.config.hydra.job_logging is None:
+            return True
+        confs = []
+        with first.around():
+            confs.append(OmegaConf.to_container(first.config.hydra.job_logging, resolve=True))
+        raw = first.hydra["job_logging"]
+        paths = list(_interpolations(raw))
+        for job in ready[1:]:
+            with job.around():
+                confs.append(_resolve(job.config.hydra.job_logging, confs[0], paths) if job.hydra["job_logging"] == raw
+                             else OmegaConf.to_container(job.config.hydra.job_logging, resolve=True))  # fmt: skip
+        root = logging.getLogger()
+        handlers = {h.name: h for h in root.handlers if h.name}
+        found = _job_logs(handlers, confs)
+        if found is None:
+            return False
+        varying, logs = found
+        for name in varying:
+            root.removeHandler(handlers[name])
+            handlers[name].close()
+        for job, mine in zip(ready, logs):
+            job.logs = mine
+            for h in mine:  # the file exists from the job's start, as with Hydra
+                open(h.baseFilename, h.mode, encoding=h.encoding).close()
+        return True
+
+    def sweep(self, ready: list[_Job]) -> list[Any]:
+        """The runs, together (``zrp_ga.cli.main``'s part, but the console line)."""
+        from zrp_ga.run import execute
+
+        tasks = []
+        for job in ready:
+            with job.around():
+                tasks.append((job.ret.cfg, *_sweep_job_args(HydraConfig.get())))
+        return execute.sweep_batch(tasks, around=lambda k: ready[k].around()) if tasks else []
+
+    def end(self, job: _Job, value: Any) -> None:
+        """As ``run_job`` after the task: the console line, the status, the callbacks."""
+        from zrp_ga import summary
+
+        ret = job.ret
+        if isinstance(value, Exception):
+            ret.return_value, ret.status = value, JobStatus.FAILED
+        else:
+            try:
+                hc = HydraConfig.get()
+                summary.console(job.out, (hc.job.num, " ".join(ret.overrides)))
+                ret.return_value, ret.status = value, JobStatus.COMPLETED
+            except Exception as exc:
+                ret.return_value, ret.status = exc, JobStatus.FAILED
+        ret.task_name = JobRuntime.instance().get("name")
+        for h in logging.getLogger().handlers:
+            with contextlib.suppress(Exception):
+                h.flush()
+        self.hydra_context.callbacks.on_job_end(config=job.config, job_return=ret)
+
+    def failed_before(self, job: _Job, directory: Any) -> None:
+        """A job that failed before its run (its config, its directory): failed, and recorded."""
+        ret = job.ret
+        ret.return_value, ret.status = job.error, JobStatus.FAILED
+        if ret.overrides is None:
+            ret.overrides = list(OmegaConf.select(job.config, "hydra.overrides.task", default=[]) or [])
+        with contextlib.suppress(Exception):
+            hc = job.config.hydra
+            sweep = directory.Sweep(Path(str(hc.sweep.dir)), job.idx, tuple(ret.overrides), str(hc.sweep.subdir))
+            directory.record(sweep, "failed", f"{type(job.error).__name__}: {str(job.error).splitlines()[0] if str(job.error) else ''}")

@@ -4,18 +4,25 @@ Each worker is started once per sweep and warmed up once: where processes are fo
 the sweep's process calls the warm-up function with the sweep's config (the app's modules, its
 compiled code, the first problem instance) and the workers are forked from it, sharing all
 that; elsewhere each spawned worker warms itself up while the sweeper checks the jobs. A
-worker runs the jobs it is sent, one batch after another, each through Hydra's ``run_job`` as
-Hydra's own launchers do, and sends each job's ``JobReturn`` back as soon as it ends.
+worker runs the batches it is sent, one after another. Jobs that can be evolved together (the
+same ``zrp_ga.run.execute.batch_key``: GA runs on one problem instance with one population
+shape) come as one batch, run by :func:`._batch.run_batch` with their runs in one call of the
+run layer; other jobs (and all with ``hydra.launcher.lockstep=false``) one at a time through
+Hydra's ``run_job``, as Hydra's own launchers run them. Each job's ``JobReturn`` goes back as
+soon as it is known.
 
-The driver (:func:`launch`) composes each job's config when a worker needs work, keeps every
-worker two batches ahead, collects the returns in job order, and rewrites the manifest table
-now and then. A worker that dies (killed, out of memory) fails its unfinished jobs, which are
-recorded in the manifest, and another takes its place. At Ctrl-C every process of the sweep
-gets the signal: each worker's job saves its checkpoint and records ``interrupted``, the driver
-waits for them (and signals any worker that did not get it) before it raises
-``KeyboardInterrupt`` to the console script. Workers die with the driver (Linux: the kernel
-kills them; elsewhere they stop at their next job), so that a sweep killed and started again
-never has two processes writing one job's files.
+The driver (:func:`launch`) composes the jobs' configs ahead while the workers run and groups
+them by batch key: a batch is ``batch_size`` jobs of one key (enough for every worker to get a
+few; fewer at the end, or when too many wait composed), a job without a key goes alone. A
+worker holds one batch of jobs run together (two of other jobs: one running, one waiting).
+The driver collects the returns in job order and rewrites the manifest table now and then. A
+worker that dies (killed, out of memory) fails its unfinished jobs, which are recorded in the
+manifest (but for runs of its batch that had ended), and another takes its place. At Ctrl-C
+every process of the sweep gets the signal: each worker's jobs save their checkpoints and
+record ``interrupted``, the driver waits for them (and signals any worker that did not get it)
+before it raises ``KeyboardInterrupt`` to the console script. Workers die with the driver
+(Linux: the kernel kills them; elsewhere they stop at their next batch), so that a sweep killed
+and started again never has two processes writing one job's files.
 """
 
 from __future__ import annotations
@@ -37,14 +44,24 @@ from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any
 
+from hydra.core.hydra_config import HydraConfig
 from hydra.core.singleton import Singleton
-from hydra.core.utils import JobReturn, JobStatus, configure_log, filter_overrides, run_job, setup_globals
+from hydra.core.utils import JobReturn, JobStatus, configure_log, filter_overrides, setup_globals
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
 
+from . import _batch
+
 log = logging.getLogger(__name__)
 AHEAD = 2  # batches a worker holds: one running, one waiting
+MIN_BATCH, MAX_BATCH, ROUNDS = 8, 256, 3  # jobs run together (batch_size)
 PATIENCE_S = (2.0, 15.0)  # at Ctrl-C: waiting for workers to stop on their own, then after signalling them
+
+
+def batch_size(n_jobs: int, n_workers: int) -> int:
+    """Jobs run together in one batch: enough for each worker to get ``ROUNDS`` batches of the
+    sweep (so that the workers end together), at least ``MIN_BATCH``, at most ``MAX_BATCH``."""
+    return max(MIN_BATCH, min(MAX_BATCH, -(-n_jobs // (n_workers * ROUNDS))))
 
 
 def n_workers(n_jobs: int) -> int:
@@ -85,11 +102,16 @@ def _serve(conn: Any, start: _Start) -> None:
         if start.warm_up:
             _warm_up(start.warm_up, start.config)
         while True:
-            batch = conn.recv()
-            if batch is None:
+            message = conn.recv()
+            if message is None:
                 return
+            together, batch = message
+            if together:  # their runs evolved together
+                for (idx, _), ret in zip(batch, _batch.run_batch(batch, start.hydra_context, task_function)):
+                    conn.send_bytes(_dump_return(idx, ret))
+                continue
             for idx, data in batch:
-                ret = _run_job(idx, data, start.hydra_context, task_function)
+                ret = _batch.run_alone(idx, pickle.loads(data), start.hydra_context, task_function)
                 conn.send_bytes(_dump_return(idx, ret))
     except (EOFError, OSError):  # the driver is gone
         return
@@ -102,16 +124,6 @@ def _warm_up(path: str, config: DictConfig) -> None:
     t0 = time.perf_counter()
     _locate(path)(config)
     log.debug(f"warm-up ({path}) in process {os.getpid()}: {time.perf_counter() - t0:.2f} s")
-
-
-def _run_job(idx: int, data: bytes, hydra_context: HydraContext, task_function: TaskFunction) -> JobReturn:
-    """One job with Hydra's ``run_job``, as Hydra's basic launcher runs it."""
-    config = pickle.loads(data)
-    with open_dict(config):
-        config.hydra.job.id = str(idx)  # a string field
-        config.hydra.job.num = idx
-    return run_job(hydra_context=hydra_context, task_function=task_function, config=config,
-                   job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")  # fmt: skip
 
 
 def _dump_return(idx: int, ret: JobReturn) -> bytes:
@@ -247,6 +259,8 @@ def launch(launcher: Any, job_overrides: Sequence[Sequence[str]], initial_job_id
     """Run the jobs on the launcher's workers; their returns in job order."""
     setup_globals()
     configure_log(launcher.config.hydra.hydra_logging, launcher.config.hydra.verbose)
+    if not HydraConfig.initialized():  # Hydra's view of the sweep, in this process too (where Ctrl-C is reported)
+        HydraConfig.instance().set_config(launcher.config)
     sweep = Path(str(launcher.config.hydra.sweep.dir))
     sweep.mkdir(parents=True, exist_ok=True)
     pool: Pool = launcher.pool
@@ -277,11 +291,17 @@ class _Dispatcher:
         from ._progress import SweepProgress
 
         self.progress = SweepProgress(len(self.overrides), bool(launcher.config.get("progress", True)))
+        self.together = bool(launcher.settings.lockstep) and _batch.is_zrp_ga(launcher.task_function)
+        self.pending: dict[str, list] = {}  # batch key -> jobs composed, not sent yet
+        self.alone: collections.deque = collections.deque()  # jobs without a key, composed, not sent yet
+        self.waiting = 0  # jobs composed, not sent yet
+        self.size = batch_size(len(todo), len(pool.workers))
+        self.limit = self.size * len(pool.workers) * 2  # jobs composed ahead at most
 
     def show_progress(self, close: bool = False) -> None:
-        """The progress line (``_progress``): jobs ended, failed, running (a worker runs one at a time)."""
+        """The progress line (``_progress``): jobs ended, failed, running (a worker's first batch)."""
         failed = sum(r.status == JobStatus.FAILED for r in self.returns.values())
-        running = sum(bool(w.batches) for w in self.pool.workers)
+        running = sum(len(w.batches[0]) for w in self.pool.workers if w.batches)
         (self.progress.close if close else self.progress.show)(len(self.returns), failed, 0 if close else running)
 
     def run(self) -> dict[int, JobReturn]:
@@ -292,27 +312,84 @@ class _Dispatcher:
             handles = {}
             for w in self.pool.workers:
                 handles[w.conn] = handles[w.process.sentinel] = w
-            for handle in wait(list(handles), timeout=self.launcher.settings.table_every_s):
+            ahead = self.together and self.todo and self.waiting < self.limit  # compose while the workers work
+            ready = wait(list(handles), timeout=0 if ahead else self.launcher.settings.table_every_s)
+            for handle in ready:
                 w = handles[handle]
                 if w in self.pool.workers:
                     self.receive(w) if handle is w.conn else self.lost(w)
+            if ahead and not ready:
+                self.compose_next()
             if time.monotonic() - self.table_at > self.launcher.settings.table_every_s:
                 self.write_table()
         return self.returns
 
     def feed(self, w: _Worker) -> None:
-        """Send ``w`` batches until it holds ``AHEAD``."""
-        while len(w.batches) < AHEAD and self.todo:
-            batch = [self.todo.popleft() for _ in range(min(self.launcher.settings.batch_size, len(self.todo)))]
-            for idx, overrides in batch:
+        """Send ``w`` batches until it holds ``AHEAD`` (batches of jobs run together: one, so
+        that no batch waits behind another while a worker is idle)."""
+        while len(w.batches) < (1 if self.together else AHEAD):
+            together, batch = self.next_batch()
+            if not batch:
+                return
+            for idx, overrides, _ in batch:
                 log.info(f"\t#{idx} : {' '.join(filter_overrides(overrides))}")
-            w.conn.send([(idx, self.compose(overrides)) for idx, overrides in batch])
-            w.batches.append([idx for idx, _ in batch])
+            w.conn.send((together, [(idx, data) for idx, _, data in batch]))
+            w.batches.append([idx for idx, _, _ in batch])
 
-    def compose(self, overrides: list[str]) -> bytes:
-        """The job's config, composed now (while the workers run the jobs before it), pickled."""
-        config = self.launcher.hydra_context.config_loader.load_sweep_config(self.launcher.config, overrides)
-        return pickle.dumps(config)
+    def next_batch(self) -> tuple[bool, list[tuple[int, list[str], bytes]]]:
+        """Whether the jobs of the next batch run together, and its jobs (number, overrides,
+        pickled config). Together: jobs of the same ``batch_key``, ``self.size`` of them, or
+        fewer when ``self.limit`` jobs wait composed (then those of the key with the most) and
+        at the end of the sweep; a job without a key alone; with ``lockstep=false``
+        ``batch_size`` jobs one after another."""
+        if not self.together:
+            batch = [self.todo.popleft() for _ in range(min(self.launcher.settings.batch_size, len(self.todo)))]
+            return False, [(idx, overrides, pickle.dumps(self.compose(overrides))) for idx, overrides in batch]
+        while True:
+            if self.alone:
+                self.waiting -= 1
+                return False, [self.alone.popleft()]
+            full = next((key for key, jobs in self.pending.items() if len(jobs) >= self.size), None)
+            if full is not None:
+                return True, self._pop(full)
+            if not self.todo or self.waiting >= self.limit:
+                break
+            self.compose_next()
+        if not self.pending:
+            return False, []
+        return True, self._pop(max(self.pending, key=lambda k: len(self.pending[k])))
+
+    def compose_next(self) -> None:
+        """Compose the next job and put it with those of its batch key (or alone)."""
+        idx, overrides = self.todo.popleft()
+        config = self.compose(overrides)
+        key = self.key(config)
+        job = (idx, overrides, pickle.dumps(config))
+        self.alone.append(job) if key is None else self.pending.setdefault(key, []).append(job)
+        self.waiting += 1
+
+    def _pop(self, key: str) -> list:
+        jobs = self.pending[key]
+        batch, self.pending[key] = jobs[: self.size], jobs[self.size :]
+        if not self.pending[key]:
+            del self.pending[key]
+        self.waiting -= len(batch)
+        return batch
+
+    @staticmethod
+    def key(config: DictConfig) -> str | None:
+        """The job's ``batch_key`` (None: it runs alone; so does a job whose config fails here:
+        it fails in its run, with its own message)."""
+        try:
+            from zrp_ga.run import execute
+
+            return execute.batch_key(config)
+        except Exception:
+            return None
+
+    def compose(self, overrides: list[str]) -> DictConfig:
+        """The job's config, composed now (while the workers run the jobs before it)."""
+        return self.launcher.hydra_context.config_loader.load_sweep_config(self.launcher.config, overrides)
 
     def receive(self, w: _Worker) -> None:
         try:
@@ -326,14 +403,14 @@ class _Dispatcher:
             self.feed(w)
 
     def lost(self, w: _Worker) -> None:
-        """``w`` died: its unfinished jobs fail (and are recorded); another worker takes its place."""
+        """``w`` died: its unfinished jobs fail (and are recorded), but those whose run had
+        finished (a batch's runs end before the batch); another worker takes its place."""
         w.process.join(1.0)
         code = w.process.exitcode
+        states = _states(self.sweep)
         for idx in [i for batch in w.batches for i in batch]:
             error = RuntimeError(f"the worker process running this job died (exit code {code})")
-            self.returns[idx] = JobReturn(overrides=self.overrides[idx], status=JobStatus.FAILED)
-            self.returns[idx].return_value = error
-            _record_failure(self.launcher, idx, self.overrides[idx], error)
+            self.returns[idx] = _lost_job(self.launcher, idx, self.overrides[idx], error, states.get(idx))
         self.feed(self.pool.replace(w))
 
     def write_table(self) -> None:
@@ -345,15 +422,37 @@ class _Dispatcher:
         directory.write_table(self.sweep)
 
 
-def _record_failure(launcher: Any, idx: int, overrides: list[str], error: Exception) -> None:
-    """The manifest line of a job whose worker died before it could write one."""
+def _lost_job(launcher: Any, idx: int, overrides: list[str], error: Exception, state: str | None) -> JobReturn:
+    """The return of a job whose worker died before sending it: completed with the objective in
+    its summary when its run had ended (``state``: its last in the manifest), else failed, with
+    the manifest line the job could not write."""
+    ret = JobReturn(overrides=overrides, status=JobStatus.FAILED)
+    ret.return_value = error
     try:
         from zrp_ga.run import directory
     except ImportError:
-        return
+        return ret
     config = launcher.hydra_context.config_loader.load_sweep_config(launcher.config, overrides)
     with open_dict(config):
         config.hydra.job.id, config.hydra.job.num = str(idx), idx
     hc = config.hydra
     sweep = directory.Sweep(Path(hc.sweep.dir), idx, tuple(hc.overrides.task), str(hc.sweep.subdir))
+    out = sweep.dir / sweep.subdir
+    if state == "done" and directory.status(out) == "done":
+        try:
+            value = directory.read_summary(out).get("objective")
+            ret.status, ret.return_value = JobStatus.COMPLETED, float("nan") if value is None else float(value)
+            return ret
+        except (OSError, ValueError, TypeError):
+            pass
     directory.record(sweep, "failed", f"{type(error).__name__}: {error}")
+    return ret
+
+
+def _states(sweep: Path) -> dict[int, str]:
+    """Each job's last state in the sweep's manifest."""
+    try:
+        from zrp_ga.run import directory
+    except ImportError:
+        return {}
+    return {int(s["job"]): s["status"] for s in directory.job_states(sweep)}

@@ -3,9 +3,11 @@ same on every core).
 
 Long-lived worker processes, started once per sweep, import the app and load its compiled code
 once (forked from the sweep's process after it warmed up, where processes can be forked), then
-take jobs a batch at a time and run each with Hydra's ``run_job``: its own output directory,
-``.hydra`` config record, log file, callbacks (the manifest line) and return value, as with
-Hydra's basic or joblib launcher. Job configs are composed from a few of Hydra's compositions
+take jobs a batch at a time. GA jobs on one problem instance with one population shape run
+together, their runs evolved in lockstep by the run layer (``_batch.py``; off with
+``hydra.launcher.lockstep=false``), other jobs one at a time with Hydra's ``run_job``; every
+job has its own output directory, ``.hydra`` config record, log file, callbacks (the manifest
+line) and return value, as with Hydra's basic or joblib launcher. Job configs are composed from a few of Hydra's compositions
 (``_compose.py``, equal to Hydra's own). While the jobs run, one line on stderr says how many are
 done, failed and running and the time left (``_progress.py``; on a terminal only, else a plain
 line a minute; none with ``progress=false``).
@@ -13,7 +15,8 @@ line a minute; none with ``progress=false``).
 This module is imported by Hydra's plugin discovery at every start of every Hydra app, so it
 imports nothing heavy; the work is in ``_workers`` and ``_compose`` (not scanned: names with
 a leading underscore). It uses Hydra's public interfaces only (``Launcher``, ``run_job``, the
-``ConfigLoader`` interface, ``Singleton.get_state``/``set_state``), as hydra-core 1.3 and 1.4 keep them.
+``ConfigLoader`` interface, ``Singleton.get_state``/``set_state``, ``HydraConfig``,
+``configure_log``, ``JobReturn``), as hydra-core 1.3 and 1.4 keep them.
 """
 
 from collections.abc import Sequence
