@@ -5,6 +5,8 @@ evaluation saw. :class:`zrp_ga.algorithms.lm.LM` runs it as an optimiser (a conv
 evaluation); a problem kind that judges its answers by a calibration (the pose-selection
 problem) calls it directly, without reaching up into the algorithms. The choices (scaling,
 tolerances, ``"trf"`` for fewer rows than parameters) are explained in :mod:`zrp_ga.algorithms.lm`.
+MINPACK is handed one parameter more than the problem has, with a zero Jacobian column, so that
+the same fit gives the same numbers every time (:func:`_padded` says why).
 """
 
 from __future__ import annotations
