@@ -5,6 +5,8 @@ evaluation saw. :class:`zrp_ga.algorithms.lm.LM` runs it as an optimiser (a conv
 evaluation); a problem kind that judges its answers by a calibration (the pose-selection
 problem) calls it directly, without reaching up into the algorithms. The choices (scaling,
 tolerances, ``"trf"`` for fewer rows than parameters) are explained in :mod:`zrp_ga.algorithms.lm`.
+MINPACK is handed one parameter more than the problem has, with a zero Jacobian column, so that
+the same fit gives the same numbers every time (:func:`_padded` says why).
 """
 
 from __future__ import annotations
@@ -67,6 +69,38 @@ def levenberg_marquardt(
         return r
 
     method = "lm" if problem.n_rows >= x0.size else "trf"
-    fit = least_squares(residual, x0, jac=lambda x: -problem.jacobian(x), method=method, max_nfev=max_evals,
-                        x_scale=np.full(x0.size, X_SCALE), ftol=1e-15, xtol=1e-15, gtol=1e-15)  # fmt: skip
+    fun, jac, start = residual, lambda x: -problem.jacobian(x), x0
+    if method == "lm":
+        fun, jac, start = _padded(residual, jac, x0.size, problem.n_rows)
+    fit = least_squares(fun, start, jac=jac, method=method, max_nfev=max_evals, x_scale=np.full(start.size, X_SCALE),
+                        ftol=1e-15, xtol=1e-15, gtol=1e-15)  # fmt: skip
     return Fit(best[0], best[1], count[0], f"{method}: {fit.message}", initial)
+
+
+def _padded(residual: Callable[[Array], Array], jacobian: Callable[[Array], Array], n: int, rows: int):
+    """The residual, Jacobian and start x = 0 with one more parameter that nothing depends on
+    (a zero last Jacobian column), and a zero row when there are no more rows than parameters.
+
+    Why: scipy's MINPACK (C since scipy 1.15, up to 1.17.1 at least) re-computes in its QR
+    factorisation (``qrfac``) the norm of a column that has lost most of its length with one
+    element too many, reading the element after the column; for the last column of the Jacobian
+    that is past the end of its array, memory whose content depends on what the process
+    allocated before (valgrind: "Invalid read of size 8 ... enorm, qrfac, LMDER ... 0 bytes after
+    a block of size 8 m n"). The column pivoting then depends on it: the same fit took 39 to 47
+    evaluations and ended 1e-13..1e-9 apart from one call to the next in one process. A zero
+    column is never re-computed (its norm is 0) and is never pivoted forward (only a strictly
+    larger norm is), so it stays last and the element read after each real column is in the
+    array. Its step is always exactly 0: it changes no gene and no cost, only MINPACK's lower
+    bound on the LM parameter (0 for a singular Jacobian), so the path differs from the unpadded
+    fit's by rounding."""
+    extra_row = rows <= n  # MINPACK's LM needs at least as many rows as parameters
+
+    def fun(z: Array) -> Array:
+        r = residual(z[:-1])
+        return np.append(r, 0.0) if extra_row else r
+
+    def jac(z: Array) -> Array:
+        J = jacobian(z[:-1])
+        return np.pad(J, ((0, int(extra_row)), (0, 1)))
+
+    return fun, jac, np.zeros(n + 1)
