@@ -46,14 +46,14 @@ def position_errors(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: Measu
     one genome (K,), (P, M) for a population (P, K); NaN where the genes break the model. With
     ``registration="rigid"`` each genome's predictions are first moved rigidly onto the
     measurements (module docstring)."""
-    from zrp_ga.registration import align
-
     if registration not in REGISTRATIONS:
         raise ValueError(f"problem.validation_registration: {registration!r}, expected one of {', '.join(REGISTRATIONS)}")
     X = np.asarray(X, dtype=float)
     with np.errstate(all="ignore"):
         p = predicted_positions(layout, nominal, X, data, each)
         if registration == "rigid":
+            from zrp_ga.registration import align  # imported for this choice only
+
             p = np.array([align(pk, data.p) if np.all(np.isfinite(pk)) else pk for pk in p])
         err = np.linalg.norm(data.p[None] - p, axis=2)
     return err[0] if X.ndim == 1 else err
