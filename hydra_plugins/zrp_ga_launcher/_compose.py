@@ -40,6 +40,7 @@ import multiprocessing
 import os
 import pickle
 import re
+import signal
 from typing import Any
 
 from hydra.core.config_loader import ConfigLoader
@@ -266,13 +267,15 @@ class ComposingLoader(ConfigLoader):
             return
         global _FORKED
         _FORKED = (self, master, shape, base, todo)
+        pool = multiprocessing.get_context("fork").Pool(min(cores, len(todo)), initializer=_quiet_child)
         try:
-            with multiprocessing.get_context("fork").Pool(min(cores, len(todo))) as pool:
-                made = pool.map(_make_in_child, range(len(todo)))
+            made = pool.map(_make_in_child, range(len(todo)))
         except Exception:  # composed one at a time, as asked, instead
             return
         finally:
             _FORKED = None
+            pool.close()  # the children end on their own: no signal (the app turns SIGTERM into Ctrl-C)
+            pool.join()
         for (g, o), variant in zip(todo, made):
             self.hydra_compositions += 1
             self._keep_variant((shape, tuple(base.lines), g, o), shape, base, variant)
@@ -295,6 +298,13 @@ class ComposingLoader(ConfigLoader):
 
 
 _FORKED: tuple | None = None  # what a forked process of ComposingLoader._prefetch composes from
+
+
+def _quiet_child() -> None:
+    """In a composing child: the default SIGTERM and no SIGINT (the sweep's process handles
+    Ctrl-C; zrp-ga's own handlers, inherited by the fork, would raise KeyboardInterrupt here)."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _make_in_child(k: int) -> _Composed:

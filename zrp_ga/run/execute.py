@@ -152,17 +152,10 @@ def sweep_batch(jobs: Sequence[Job], cache: Cache = CACHE,
 
     for k, (cfg, where, sweep, choices) in enumerate(jobs):
         with job(k):
-            try:
-                got = _job(task_config(cfg), where, sweep, choices, cache)
-            except KeyboardInterrupt:
-                directory.record(sweep, "interrupted", INTERRUPTED)
-                raise
-            except Exception as exc:
-                _failed(sweep, exc)
-                out[k] = exc
-                continue
-            if isinstance(got, float):
-                directory.record(sweep, "done")
+            got = _attempt(sweep, _job, cfg, where, sweep, choices, cache)
+            if isinstance(got, (float, Exception)):
+                if isinstance(got, float):
+                    directory.record(sweep, "done")
                 out[k] = got
             else:
                 key = None if got.algorithm.draws_from_random() else batch_key(got.cfg)
@@ -171,16 +164,9 @@ def sweep_batch(jobs: Sequence[Job], cache: Cache = CACHE,
         if len(group) == 1:
             k, p, sweep = group[0]
             with job(k):
-                try:
-                    out[k] = objective(run_prepared(p, False, sweep, cache))
-                except KeyboardInterrupt:
-                    directory.record(sweep, "interrupted", INTERRUPTED)
-                    raise
-                except Exception as exc:
-                    _failed(sweep, exc)
-                    out[k] = exc
-                    continue
-                directory.record(sweep, "done")
+                out[k] = _attempt(sweep, _run_job, p, sweep, cache)
+                if not isinstance(out[k], Exception):
+                    directory.record(sweep, "done")
         else:
             for (k, _, _), value in zip(group, _together(group, cache, job)):
                 out[k] = value if isinstance(value, Exception) else objective(value)
@@ -192,6 +178,19 @@ INTERRUPTED = "KeyboardInterrupt: continue by running the sweep again"
 # than this many seconds after the last (and at the end, and at Ctrl-C): a batch of short runs
 # then writes each run's checkpoint once, and a kill loses at most this much of a batch's work.
 BATCH_CHECKPOINT_S = 10.0
+
+
+def _attempt(sweep: Sweep, work: Callable[..., Any], *args: Any) -> Any:
+    """``work(*args)``, or the exception it raised, recorded in the sweep's manifest as failed;
+    Ctrl-C recorded as interrupted, and raised."""
+    try:
+        return work(*args)
+    except KeyboardInterrupt:
+        directory.record(sweep, "interrupted", INTERRUPTED)
+        raise
+    except Exception as exc:
+        _failed(sweep, exc)
+        return exc
 
 
 def _failed(sweep: Sweep, exc: BaseException) -> None:
@@ -322,11 +321,16 @@ def _callbacks(p: Prepared, callbacks: Any, hashed: dict[str, dict]) -> tuple:
     return np.random.default_rng([seed, 0]), cbs, resolved, seeded
 
 
+def _run_job(p: Prepared, sweep: Sweep, cache: Cache) -> float:
+    return objective(run_prepared(p, False, sweep, cache))
+
+
 def _job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Cache) -> float | Prepared:
     """A sweep job's run prepared, or its objective when its directory holds it finished (see
-    :func:`sweep_job`)."""
+    :func:`sweep_job`); ``cfg`` with or without its hydra node."""
     from zrp_ga import checkpoint
 
+    cfg = task_config(cfg)
     damaged = directory.damage(out) if directory.status(out) == "done" else None
     if damaged:  # never kept as finished: the run is deterministic, so running it again gives its files back
         log.warning("%s: %s; the job runs again", out, damaged)
@@ -359,7 +363,7 @@ def _job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Cache) 
 
 def _sweep_job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Cache) -> float:
     got = _job(cfg, out, sweep, choices, cache)
-    return got if isinstance(got, float) else objective(run_prepared(got, False, sweep, cache))
+    return got if isinstance(got, float) else _run_job(got, sweep, cache)
 
 
 def _same_run(cfg: DictConfig, stored: dict | None, out: Path) -> None:
