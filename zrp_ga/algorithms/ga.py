@@ -30,31 +30,9 @@ UNARY = (("mutate", "mutation"), ("invert", "inversion"), ("rotate", "rotation")
 
 
 def rank(costs: Array) -> NDArray[np.intp]:
-    """Indices from best to worst, NaN and inf last, ties in order (stable)."""
-    return np.argsort(np.where(np.isfinite(costs), costs, np.inf), kind="stable")
-
-
-def plus(pop: Array, costs: Array, off: Array, off_costs: Array, mu: int, elite: int) -> tuple[Array, Array]:
-    """(mu + lambda), the paper's step 9: the best mu of parents and offspring."""
-    genes, pool = np.vstack([pop, off]), np.concatenate([costs, off_costs])
-    keep = rank(pool)[:mu]
-    return genes[keep], pool[keep]
-
-
-def comma(pop: Array, costs: Array, off: Array, off_costs: Array, mu: int, elite: int) -> tuple[Array, Array]:
-    """(mu, lambda): the best mu of the offspring."""
-    keep = rank(off_costs)[:mu]
-    return off[keep], off_costs[keep]
-
-
-def generational(pop: Array, costs: Array, off: Array, off_costs: Array, mu: int, elite: int) -> tuple[Array, Array]:
-    """The offspring replace the parents, but for the ``elite`` best parents."""
-    genes, pool = np.vstack([pop, off]), np.concatenate([costs, off_costs])
-    keep = np.concatenate([rank(costs)[:elite], len(costs) + rank(off_costs)[: mu - elite]])
-    return genes[keep], pool[keep]
-
-
-SURVIVAL = {Strategy.mu_plus_lambda: plus, Strategy.mu_comma_lambda: comma, Strategy.generational: generational}
+    """Indices from best to worst (along the last axis: each run's, for several runs' costs),
+    NaN and inf last, ties in order (stable)."""
+    return np.argsort(np.where(np.isfinite(costs), costs, np.inf), axis=-1, kind="stable")
 
 
 class GA(Algorithm):
@@ -357,10 +335,11 @@ def _refine(runs: Sequence[GA], off: Array, spans: list[slice]) -> NDArray[np.bo
         index, who = np.concatenate(rows), np.concatenate(owner)
         _apply(runs, "refine", index, who, off)
         refined[index] = True
+        refiners = np.unique(who).tolist()
         if len(runs) > 1:  # alone, the toolbox's refine is timed by the run's callback
-            for i in np.unique(who).tolist():
+            for i in refiners:
                 runs[i].shared_s["refine_s"] += (time.perf_counter() - t0) / len(rows)
-        _repair(runs, off, spans, np.unique(who).tolist())
+        _repair(runs, off, spans, refiners)
     return refined
 
 
@@ -416,26 +395,22 @@ def _survive(runs: Sequence[GA], off: Array, off_costs: Array, spans: list[slice
             ga.stop_reason = ga._stop_reason()
 
 
-def _ranked(costs: Array) -> NDArray[np.intp]:
-    """:func:`rank` of each row of ``costs`` (runs, n)."""
-    return np.argsort(np.where(np.isfinite(costs), costs, np.inf), axis=1, kind="stable")
-
-
 def _plus_together(P, Pc, Q, Qc, mu, elite):
     genes, pool = np.concatenate([P, Q], axis=1), np.concatenate([Pc, Qc], axis=1)
-    return genes, pool, _ranked(pool)[:, :mu]
+    return genes, pool, rank(pool)[:, :mu]
 
 
 def _comma_together(P, Pc, Q, Qc, mu, elite):
-    return Q, Qc, _ranked(Qc)[:, :mu]
+    return Q, Qc, rank(Qc)[:, :mu]
 
 
 def _generational_together(P, Pc, Q, Qc, mu, elite):
     genes, pool = np.concatenate([P, Q], axis=1), np.concatenate([Pc, Qc], axis=1)
-    return genes, pool, np.concatenate([_ranked(Pc)[:, :elite], Pc.shape[1] + _ranked(Qc)[:, : mu - elite]], axis=1)
+    return genes, pool, np.concatenate([rank(Pc)[:, :elite], Pc.shape[1] + rank(Qc)[:, : mu - elite]], axis=1)
 
 
-# The survival strategies for many runs at once: (genes, costs, indices of the survivors), the
-# same survivors as SURVIVAL's for each run.
+# The survival strategies, for one run or many at once: (genes, costs, indices of the survivors):
+# (mu + lambda), the paper's step 9, the best mu of parents and offspring; (mu, lambda), the best mu
+# of the offspring; generational, the offspring but for the ``elite`` best parents.
 SURVIVE_TOGETHER = {Strategy.mu_plus_lambda: _plus_together, Strategy.mu_comma_lambda: _comma_together,
                     Strategy.generational: _generational_together}  # fmt: skip
