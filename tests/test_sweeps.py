@@ -438,6 +438,55 @@ def test_the_driver_groups_jobs_by_batch_key(hydra_loader, tmp_path):
     assert _workers.batch_size(144, 2) == 24 and _workers.batch_size(10, 2) == 8 and _workers.batch_size(10**5, 2) == _workers.MAX_BATCH
 
 
+def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path):
+    """A sweep whose jobs of one batch key lie far apart (``seed`` varying fastest: one problem
+    instance per seed) and more jobs than the driver composes ahead: the keys the loader noted
+    as the sweeper checked the jobs put each key's jobs in one batch, all of them; without
+    the notes (a loader that noted nothing) the jobs go in their order, in smaller batches."""
+    import collections
+    import pickle
+    import types
+
+    from hydra.types import HydraContext, RunMode
+
+    from hydra_plugins.zrp_ga_launcher import _compose, _workers
+    from zrp_ga import cli, config
+    from zrp_ga.run import execute
+
+    master = hydra_loader.load_configuration("config", ["hydra.mode=MULTIRUN", f"hydra.sweep.dir={tmp_path}"], RunMode.MULTIRUN)
+    jobs = [[f"crossover={c}", f"seed={s}"] for c in ("sbx", "blend", "one_point", "two_point") for s in range(6)]
+    jobs.insert(5, ["algorithm=lm", "seed=0"])  # a job without a key, among them
+
+    def sent(noting: bool) -> list[tuple[bool, list[int]]]:
+        loader = _compose.ComposingLoader(hydra_loader)
+        if noting:
+            loader.note = _workers._Dispatcher.key
+        for overrides in jobs:  # as Hydra's sweeper checks every job before the launch
+            loader.load_sweep_config(master, overrides)
+        launcher = types.SimpleNamespace(config=master, settings=config.ZrpGaLauncherConf(),
+                                         hydra_context=HydraContext(config_loader=loader, callbacks=None),
+                                         task_function=cli.main.__wrapped__)  # fmt: skip
+        dispatcher = _workers._Dispatcher(launcher, types.SimpleNamespace(workers=[None, None]),
+                                          collections.deque(enumerate(jobs)), tmp_path)  # fmt: skip
+        dispatcher.limit = 4  # composed ahead at most: fewer than a key's jobs lie apart
+        out = []
+        while (batch := dispatcher.next_batch())[1]:
+            together, got = batch
+            assert together or len(got) == 1
+            if together:
+                assert len({execute.batch_key(pickle.loads(data)) for _, _, data in got}) == 1
+            out.append((together, sorted(idx for idx, _, _ in got)))
+        assert sorted(i for _, b in out for i in b) == list(range(len(jobs)))
+        return out
+
+    seeds = [int(o[-1].split("=")[1]) for o in jobs]
+    noted = sent(True)
+    together = [b for t, b in noted if t]
+    assert len(together) == 6 and all(len(b) == 4 and len({seeds[i] for i in b}) == 1 for b in together)
+    assert [b for t, b in noted if not t] == [[5]]
+    assert max(len(b) for t, b in sent(False) if t) < 4
+
+
 def test_yaml_records_are_omegaconfs_text(hydra_loader):
     """``_batch.to_yaml``, with its kept texts, against ``OmegaConf.to_yaml`` on whole configs
     and values it quotes or folds."""

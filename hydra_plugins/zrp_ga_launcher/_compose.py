@@ -41,6 +41,7 @@ import os
 import pickle
 import re
 import signal
+from collections.abc import Callable
 from typing import Any
 
 from hydra.core.config_loader import ConfigLoader
@@ -89,6 +90,11 @@ class ComposingLoader(ConfigLoader):
         self._fixed_bases: dict[tuple, _Composed] = {}  # (shape, non-separable options) -> the first composition with them
         self._prefetched: set[tuple] = set()  # (shape, base lines) whose variants were composed ahead
         self._asked: dict[tuple, DictConfig] = {}  # (master, overrides) -> the job's config, asked for once
+        # note(config) of every job composed, by (master, overrides): the launcher's batch key, so
+        # that the jobs of a key can be sent together without composing the whole sweep ahead
+        self.note: Callable[[DictConfig], Any] | None = None
+        self.noted: dict[tuple, Any] = {}
+        self._notes: dict[Any, Any] = {}  # each note once (equal notes of many jobs share one object)
 
     @classmethod
     def wrap(cls, loader: ConfigLoader, enabled: bool = True) -> ComposingLoader:
@@ -146,7 +152,14 @@ class ComposingLoader(ConfigLoader):
         cfg = self._compose(master_config, sweep_overrides)
         if len(self._asked) < KEEP_ASKED:
             self._asked[key] = cfg
+        if self.note is not None:
+            note = self.note(cfg)
+            self.noted[key] = self._notes.setdefault(note, note)
         return cfg
+
+    def noted_for(self, master_config: DictConfig, sweep_overrides: list[str], default: Any = None) -> Any:
+        """``note(config)`` of the job, noted when it was composed (``default``: not composed yet)."""
+        return self.noted.get((id(master_config), tuple(sweep_overrides)), default)
 
     def _compose(self, master_config: DictConfig, sweep_overrides: list[str]) -> DictConfig:
         lines = [*master_config.hydra.overrides.hydra, *sweep_overrides]

@@ -297,6 +297,26 @@ class _Dispatcher:
         self.waiting = 0  # jobs composed, not sent yet
         self.size = batch_size(len(todo), len(pool.workers))
         self.limit = self.size * len(pool.workers) * 2  # jobs composed ahead at most
+        self.left: collections.Counter | None = None  # per batch key, its jobs not composed yet (if known)
+        noted = getattr(launcher.hydra_context.config_loader, "noted_for", None)
+        if self.together and noted is not None:
+            self._by_key(noted)
+
+    def _by_key(self, noted: Callable[[DictConfig, list[str]], Any]) -> None:
+        """Put the jobs of each batch key side by side (keys in the order they first come), from
+        the keys the config loader noted when the sweeper checked the jobs: a sweep whose jobs of
+        one key are far apart (seeds of simulated instances: ``seed`` varies fastest) then sends
+        whole batches without composing the sweep ahead. A job whose key was not noted stays a
+        group of its own, where it is."""
+        unknown = object()
+        keys = [noted(self.launcher.config, overrides, unknown) for _, overrides in self.todo]
+        if any(k is unknown for k in keys):
+            return
+        groups: dict[Any, list] = {}
+        for job, key in zip(self.todo, keys):
+            groups.setdefault(("alone", job[0]) if key is None else key, []).append(job)
+        self.todo = collections.deque(job for jobs in groups.values() for job in jobs)
+        self.left = collections.Counter(keys)
 
     def show_progress(self, close: bool = False) -> None:
         """The progress line (``_progress``): jobs ended, failed, running (a worker's first batch)."""
@@ -349,7 +369,8 @@ class _Dispatcher:
             if self.alone:
                 self.waiting -= 1
                 return False, [self.alone.popleft()]
-            full = next((key for key, jobs in self.pending.items() if len(jobs) >= self.size), None)
+            full = next((key for key, jobs in self.pending.items()
+                         if len(jobs) >= self.size or (self.left is not None and not self.left[key])), None)  # fmt: skip
             if full is not None:
                 return True, self._pop(full)
             if not self.todo or self.waiting >= self.limit:
@@ -363,7 +384,10 @@ class _Dispatcher:
         """Compose the next job and put it with those of its batch key (or alone)."""
         idx, overrides = self.todo.popleft()
         config = self.compose(overrides)
-        key = self.key(config)
+        noted = getattr(self.launcher.hydra_context.config_loader, "noted_for", None)
+        key = noted(self.launcher.config, overrides) if self.left is not None else self.key(config)
+        if self.left is not None:
+            self.left[key] -= 1
         job = (idx, overrides, pickle.dumps(config))
         self.alone.append(job) if key is None else self.pending.setdefault(key, []).append(job)
         self.waiting += 1

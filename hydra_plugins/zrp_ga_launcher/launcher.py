@@ -41,13 +41,16 @@ class ZrpGaLauncher(Launcher):
         self.pool: Any = None
 
     def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig) -> None:
-        from . import _compose, _workers
+        from . import _batch, _compose, _workers
 
         self.settings.check()  # here, not in __init__: Hydra's instantiate would wrap its one line in its own
         # The sweeper checks every job with this same loader before launching: one cache for both.
         hydra_context.config_loader = _compose.ComposingLoader.wrap(
             hydra_context.config_loader, self.settings.cached_composition
         )
+        if self.local and self.settings.lockstep and _batch.is_zrp_ga(task_function):
+            # each job's batch key, noted as the sweeper checks it: the jobs of a key sent together
+            hydra_context.config_loader.note = _workers._Dispatcher.key
         self.config, self.task_function, self.hydra_context = config, task_function, hydra_context
         if self.local:
             self.pool = _workers.Pool(self.settings, hydra_context, task_function, config)
