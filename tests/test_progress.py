@@ -138,11 +138,9 @@ def test_the_launcher_counts_jobs_ended_failed_and_running():
 
     shown = []
     d = _workers._Dispatcher.__new__(_workers._Dispatcher)
-    d.returns = {
-        0: JobReturn(status=JobStatus.COMPLETED),
-        1: JobReturn(status=JobStatus.FAILED),
-        2: JobReturn(status=JobStatus.COMPLETED),
-    }
+    d.returns, d.failed = {}, 0
+    for idx, status in enumerate([JobStatus.COMPLETED, JobStatus.FAILED, JobStatus.COMPLETED]):
+        d.returned(idx, JobReturn(status=status))
     busy, idle = SimpleNamespace(batches=[[3], [5]]), SimpleNamespace(batches=[])
     d.pool = SimpleNamespace(workers=[busy, idle, SimpleNamespace(batches=[[4]])])
     d.progress = SimpleNamespace(show=lambda *a: shown.append(("show", *a)), close=lambda *a: shown.append(("close", *a)))

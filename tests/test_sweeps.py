@@ -438,11 +438,13 @@ def test_the_driver_groups_jobs_by_batch_key(hydra_loader, tmp_path):
     assert _workers.batch_size(144, 2) == 24 and _workers.batch_size(10, 2) == 8 and _workers.batch_size(10**5, 2) == _workers.MAX_BATCH
 
 
-def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path):
+def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path, monkeypatch):
     """A sweep whose jobs of one batch key lie far apart (``seed`` varying fastest: one problem
     instance per seed) and more jobs than the driver composes ahead: the keys the loader noted
     as the sweeper checked the jobs put each key's jobs in one batch, all of them; without
-    the notes (a loader that noted nothing) the jobs go in their order, in smaller batches."""
+    the notes (a loader that noted nothing) the jobs go in their order, in smaller batches.
+    Every job's config as sent (kept from the check, pickled, beyond the few kept as they are)
+    is Hydra's own composition of the job."""
     import collections
     import pickle
     import types
@@ -476,9 +478,14 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
             if together:
                 assert len({execute.batch_key(pickle.loads(data)) for _, _, data in got}) == 1
             out.append((together, sorted(idx for idx, _, _ in got)))
+            for idx, _, data in got:
+                assert OmegaConf.to_yaml(pickle.loads(data)) == OmegaConf.to_yaml(hydra_loader.load_sweep_config(master, jobs[idx]))
+        if noting:
+            assert not loader._pickled and not loader._asked  # each kept config taken once
         assert sorted(i for _, b in out for i in b) == list(range(len(jobs)))
         return out
 
+    monkeypatch.setattr(_compose, "KEEP_ASKED", 3)  # the configs of the other jobs kept pickled
     seeds = [int(o[-1].split("=")[1]) for o in jobs]
     noted = sent(True)
     together = [b for t, b in noted if t]

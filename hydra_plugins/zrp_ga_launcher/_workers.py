@@ -287,6 +287,7 @@ class _Dispatcher:
         self.launcher, self.pool, self.todo, self.sweep = launcher, pool, todo, sweep
         self.overrides = dict(todo)
         self.returns: dict[int, JobReturn] = {}
+        self.failed = 0  # of the returns
         self.table_at = time.monotonic()
         from ._progress import SweepProgress
 
@@ -320,7 +321,7 @@ class _Dispatcher:
 
     def show_progress(self, close: bool = False) -> None:
         """The progress line (``_progress``): jobs ended, failed, running (a worker's first batch)."""
-        failed = sum(r.status == JobStatus.FAILED for r in self.returns.values())
+        failed = self.failed
         running = sum(len(w.batches[0]) for w in self.pool.workers if w.batches)
         (self.progress.close if close else self.progress.show)(len(self.returns), failed, 0 if close else running)
 
@@ -383,12 +384,15 @@ class _Dispatcher:
     def compose_next(self) -> None:
         """Compose the next job and put it with those of its batch key (or alone)."""
         idx, overrides = self.todo.popleft()
-        config = self.compose(overrides)
-        noted = getattr(self.launcher.hydra_context.config_loader, "noted_for", None)
-        key = noted(self.launcher.config, overrides) if self.left is not None else self.key(config)
-        if self.left is not None:
+        loader = self.launcher.hydra_context.config_loader
+        if self.left is not None:  # the keys noted by the loader, which keeps the configs too (ComposingLoader)
+            data = loader.pickled_config(self.launcher.config, overrides)
+            key = loader.noted_for(self.launcher.config, overrides)
             self.left[key] -= 1
-        job = (idx, overrides, pickle.dumps(config))
+        else:
+            config = self.compose(overrides)
+            key, data = self.key(config), pickle.dumps(config)
+        job = (idx, overrides, data)
         self.alone.append(job) if key is None else self.pending.setdefault(key, []).append(job)
         self.waiting += 1
 
@@ -415,12 +419,17 @@ class _Dispatcher:
         """The job's config, composed now (while the workers run the jobs before it)."""
         return self.launcher.hydra_context.config_loader.load_sweep_config(self.launcher.config, overrides)
 
+    def returned(self, idx: int, ret: JobReturn) -> None:
+        self.returns[idx] = ret
+        self.failed += ret.status == JobStatus.FAILED
+
     def receive(self, w: _Worker) -> None:
         try:
             data = w.conn.recv_bytes()
         except (EOFError, OSError):
             return self.lost(w)
-        idx, self.returns[idx] = pickle.loads(data)
+        idx, ret = pickle.loads(data)
+        self.returned(idx, ret)
         w.batches[0].remove(idx)
         if not w.batches[0]:
             w.batches.popleft()
@@ -434,7 +443,7 @@ class _Dispatcher:
         states = _states(self.sweep)
         for idx in [i for batch in w.batches for i in batch]:
             error = RuntimeError(f"the worker process running this job died (exit code {code})")
-            self.returns[idx] = _lost_job(self.launcher, idx, self.overrides[idx], error, states.get(idx))
+            self.returned(idx, _lost_job(self.launcher, idx, self.overrides[idx], error, states.get(idx)))
         self.feed(self.pool.replace(w))
 
     def write_table(self) -> None:
