@@ -46,6 +46,7 @@ them.
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import os
 import re
@@ -148,7 +149,8 @@ def sweep(args: list[str], code: Path | None, work: Path, name: str, poses: int 
     ``wall_s``), their evaluations, pose evaluations (``poses`` per evaluation) and generations'
     time (sum of convergence.csv's ``eval_s``, ``bookkeeping_s``, ``refine_s``)."""
     where = work / name
-    wall, cpu, _ = command([*args, f"hydra.sweep.dir={where}"], code, work)
+    started = time.time()
+    wall, cpu, proc = command([*args, f"hydra.sweep.dir={where}"], code, work)
     jobs = manifest(where)
     done = [j for j in jobs if j["status"] == "done"]
     compute = nevals = generations = 0.0
@@ -161,7 +163,16 @@ def sweep(args: list[str], code: Path | None, work: Path, name: str, poses: int 
         generations += float(curve.to_numpy().sum())
     return {"wall_s": wall, "cpu_s": cpu, "compute_s": compute, "runs": len(jobs), "done": len(done),
             "nevals": nevals, "pose_evals": nevals * poses if poses else None, "generations_s": generations,
-            "dir": str(where)}  # fmt: skip
+            "dir": str(where), "launch_s": launched(proc.stdout + proc.stderr, started)}  # fmt: skip
+
+
+def launched(log: str, started: float) -> float | None:
+    """Seconds from ``started`` (epoch) to the sweep's log line ``Launching N jobs`` (Hydra's
+    sweeper has checked every job, the launcher's workers are ready); None without one."""
+    found = re.search(r"^\[(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d{3})\]\[HYDRA\] Launching \d+ jobs", log, re.M)
+    if not found:
+        return None
+    return datetime.datetime.strptime(found.group(1), "%Y-%m-%d %H:%M:%S,%f").timestamp() - started
 
 
 def grid_problem():
@@ -458,7 +469,10 @@ def report(raw: dict) -> str:
                   f"`zrp-ga experiment=operator_grid hydra/launcher=local seed=range({args.big_seeds})`: "
                   f"**{big['wall_s']:.1f} s wall** ({big['wall_s'] / 60:.1f} min; {big['wall_s'] / big['runs'] * 1000:.1f} s per "
                   f"1,000 runs), {big['cpu_s']:.1f} s CPU ({big['cpu_s'] / big['runs'] * 1000:.0f} ms per run); "
-                  f"{big['done']:,} of {big['runs']:,} manifest jobs done; {big['pose_evals'] / 1e6:,.0f} M pose evaluations.",
+                  f"{big['done']:,} of {big['runs']:,} manifest jobs done; {big['pose_evals'] / 1e6:,.0f} M pose evaluations. "
+                  + ("" if big.get("launch_s") is None else
+                     f"Of the wall time, {big['launch_s']:.0f} s passed before the jobs were launched (the log's `Launching` "
+                     "line: Hydra's sweeper composes every job to check it, the workers wait)."),
                   "", f"10,000 such runs at this machine's speed, one worker being one core: "
                   f"{big['cpu_s'] / big['runs'] * 10_000 / 60:.1f} worker-minutes on zrp_ga's launcher; "
                   f"{statistics.median(j['cpu_s'] for j in jobs) * 10_000 / 60:.0f} worker-minutes with a process per "
