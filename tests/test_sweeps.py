@@ -465,6 +465,8 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
             loader.note = _workers._Dispatcher.key
         for overrides in jobs:  # as Hydra's sweeper checks every job before the launch
             loader.load_sweep_config(master, overrides)
+        if noting:  # the first jobs' configs kept pickled, up to the bytes allowed
+            assert 0 < len(loader._pickled) < len(jobs) and not loader._asked
         launcher = types.SimpleNamespace(config=master, settings=config.ZrpGaLauncherConf(),
                                          hydra_context=HydraContext(config_loader=loader, callbacks=None),
                                          task_function=cli.main.__wrapped__)  # fmt: skip
@@ -485,7 +487,7 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
         assert sorted(i for _, b in out for i in b) == list(range(len(jobs)))
         return out
 
-    monkeypatch.setattr(_compose, "KEEP_ASKED", 3)  # the configs of the other jobs kept pickled
+    monkeypatch.setattr(_compose, "KEEP_PICKLED_BYTES", 4 * 6000)  # about 4 configs kept pickled, the others composed again
     seeds = [int(o[-1].split("=")[1]) for o in jobs]
     noted = sent(True)
     together = [b for t, b in noted if t]

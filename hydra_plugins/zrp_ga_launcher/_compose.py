@@ -54,7 +54,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 KEEP_ASKED = 1024  # job configs kept between the sweeper's check and the launcher's call
-KEEP_PICKLED_BYTES = 256 * 2**20  # beyond those, with notes: the jobs' configs pickled and compressed, in all
+KEEP_PICKLED_BYTES = 256 * 2**20  # with notes, instead: the jobs' configs pickled and compressed, in all
 Shape = tuple  # one entry per override: ("group", key), ("value", key, type name) or ("line", text)
 
 
@@ -97,7 +97,7 @@ class ComposingLoader(ConfigLoader):
         self.note: Callable[[DictConfig], Any] | None = None
         self.noted: dict[tuple, Any] = {}
         self._notes: dict[Any, Any] = {}  # each note once (equal notes of many jobs share one object)
-        # with notes, the configs of the jobs checked beyond KEEP_ASKED, for pickled_config
+        # with notes, the configs of the jobs checked, pickled, for pickled_config (instead of _asked)
         self._pickled: dict[tuple, bytes] = {}
         self._pickled_bytes = 0
 
@@ -158,11 +158,13 @@ class ComposingLoader(ConfigLoader):
         if self.note is not None:
             note = self.note(cfg)
             self.noted[key] = self._notes.setdefault(note, note)
-        if len(self._asked) < KEEP_ASKED:
-            self._asked[key] = cfg
-        elif self.note is not None and self._pickled_bytes < KEEP_PICKLED_BYTES and key not in self._pickled:
-            # a big sweep: its launcher takes the job pickled (pickled_config) instead of composing it
-            # again, at a third of the cost; compressed (a config: 23 kB pickled, 6 kB so)
+        if self.note is None:
+            if len(self._asked) < KEEP_ASKED:
+                self._asked[key] = cfg
+        elif self._pickled_bytes < KEEP_PICKLED_BYTES and key not in self._pickled:
+            # zrp_ga's launcher takes the job pickled (pickled_config) instead of composing it again,
+            # at a fifth of the cost; compressed (a config: 23 kB pickled, 6 kB so). Not kept as
+            # configs: a thousand of them make every run of the garbage collector slow
             self._pickled[key] = data = zlib.compress(pickle.dumps(cfg), 1)
             self._pickled_bytes += len(data)
         return cfg
