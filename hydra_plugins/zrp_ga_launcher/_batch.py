@@ -22,11 +22,11 @@ runs its jobs one at a time through Hydra's ``run_job``. Hydra's public interfac
 from __future__ import annotations
 
 import contextlib
-import copy
 import logging
 import os
 import pickle
 from collections.abc import Iterator
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -46,7 +46,30 @@ def run_batch(jobs: list[tuple[int, DictConfig]], hydra_context: HydraContext, t
     setup_globals()  # Hydra's resolvers (a fresh process)
     if not is_zrp_ga(task_function):
         return [run_alone(idx, pickle.loads(cfg) if isinstance(cfg, bytes) else cfg, hydra_context, task_function) for idx, cfg in jobs]
-    return _Batch(jobs, hydra_context, task_function).run()
+    with _few_collections():
+        return _Batch(jobs, hydra_context, task_function).run()
+
+
+@contextlib.contextmanager
+def _few_collections() -> Iterator[None]:
+    """Python's cyclic garbage collector kept off the objects that were there before the batch
+    (Hydra's, numpy's, scipy's, the process's caches: each full collection went over all of them,
+    about half the batch's own CPU besides its runs) and run less often while the jobs' configs
+    are unpickled (many objects, little garbage). Only the objects made during the batch are
+    examined; the others again after it. Nothing a run computes depends on it."""
+    import gc
+
+    frozen = gc.get_freeze_count() == 0  # a process that froze its objects itself keeps them so
+    if frozen:
+        gc.freeze()
+    before = gc.get_threshold()
+    gc.set_threshold(max(before[0], 20_000), *before[1:])
+    try:
+        yield
+    finally:
+        gc.set_threshold(*before)
+        if frozen:
+            gc.unfreeze()
 
 
 def run_alone(idx: int, config: DictConfig, hydra_context: HydraContext, task_function: TaskFunction) -> JobReturn:
@@ -206,7 +229,7 @@ def _resolve(node: DictConfig, like: dict, paths: list[tuple]) -> dict:
     """``OmegaConf.to_container(node, resolve=True)`` of a ``node`` whose text (unresolved) is
     that of the resolved ``like``'s node, and whose interpolations are at ``paths``: ``like``
     with those resolved in ``node``."""
-    out = copy.deepcopy(like)
+    out = _copy(like)
     for path in paths:
         value: Any = node
         for k in path:
@@ -220,15 +243,70 @@ def _resolve(node: DictConfig, like: dict, paths: list[tuple]) -> dict:
     return out
 
 
-def _sweep_job_args(hc: Any) -> tuple[Path, Any, dict]:
+def _copy(container: Any) -> Any:
+    """A copy of a container (``copy.deepcopy`` of its dicts and lists; their leaves are immutable)."""
+    if isinstance(container, dict):
+        return {k: _copy(v) for k, v in container.items()}
+    if isinstance(container, list):
+        return [_copy(v) for v in container]
+    return container
+
+
+def _sweep_job_args(job: _Job) -> tuple[Path, Any, dict]:
     """A job of a sweep as the run layer takes it (``execute.sweep_job``: its directory, its
     place in the sweep, the groups' options), from Hydra's config of the job, as
     ``zrp_ga.cli.main`` makes them (not imported from there: the command line imports this
-    launcher)."""
+    launcher): from the values its ``prepare`` read, resolved (through Hydra's view of the job,
+    ``HydraConfig.get()``) where they have interpolations."""
     from zrp_ga.run.directory import Sweep
 
-    sweep = Sweep(Path(hc.sweep.dir), int(hc.job.num), tuple(hc.overrides.task), str(hc.sweep.subdir))
-    return Path(hc.runtime.output_dir), sweep, dict(hc.runtime.choices)
+    hydra = job.hydra
+    task, choices = hydra["overrides"]["task"], hydra["runtime"]["choices"]
+    if any(isinstance(v, str) and "${" in v for v in [*task, *choices.values()]):
+        hc = HydraConfig.get()
+        task, choices = list(hc.overrides.task), dict(hc.runtime.choices)
+    sweep = Sweep(Path(job.sweep_dir), job.idx, tuple(task), job.subdir)
+    return Path(hydra["runtime"]["output_dir"]), sweep, dict(choices)
+
+
+def _container(node: Any) -> Any:
+    """``OmegaConf.to_container(node, resolve=False, enum_to_str=True)`` of a config node, read
+    from the nodes' own contents (what ``to_container`` reads through its checked accessors,
+    several times slower)."""
+    content = node._value()
+    if isinstance(node, DictConfig):
+        if not isinstance(content, dict):  # None, missing ("???") or an interpolation
+            return content
+        return {(k.name if isinstance(k, Enum) else k): _container(v) for k, v in content.items()}
+    if isinstance(node, ListConfig):
+        return [_container(v) for v in content] if isinstance(content, list) else content
+    return content.name if isinstance(content, Enum) else content
+
+
+def _resolved(config: DictConfig, raw: dict, key: str, path: str) -> Any:
+    """The value at ``path`` in ``config``, resolved as Hydra's view of the job sees it, whose
+    unresolved value is ``raw[key]``: that one when it has no interpolation."""
+    value = raw[key]
+    if not (isinstance(value, str) and "${" in value):
+        return value
+    instance = HydraConfig.instance()
+    before, instance.cfg = instance.cfg, config
+    try:
+        return OmegaConf.select(config, path)
+    finally:
+        instance.cfg = before
+
+
+def _without_hydra(config: DictConfig) -> DictConfig:
+    """A copy of ``config`` without its ``hydra`` node (Hydra's ``run_job`` deep-copies the
+    config and deletes it): the config pickled without it, unpickled."""
+    content = config.__dict__["_content"]
+    config.__dict__["_content"] = {k: v for k, v in content.items() if k != "hydra"}
+    try:
+        data = pickle.dumps(config)
+    finally:
+        config.__dict__["_content"] = content
+    return pickle.loads(data)
 
 
 # --- the batch -----------------------------------------------------------------------------------------
@@ -236,7 +314,6 @@ class _Job:
     """One job of the batch: its configs, its directory, its log files and its return."""
 
     def __init__(self, idx: int, config: DictConfig | bytes):
-        self.data = config if isinstance(config, bytes) else None  # the config, pickled
         self.idx, self.config = idx, pickle.loads(config) if isinstance(config, bytes) else config
         self.ret = JobReturn()
         self.out = Path()
@@ -244,6 +321,7 @@ class _Job:
         self.error: Exception | None = None
         self.chdir, self.env = False, {}
         self.hydra: dict = {}  # its hydra node, as a container (unresolved)
+        self.sweep_dir, self.subdir = "", ""  # hydra.sweep's, resolved
 
     def prepare(self) -> None:
         """As ``run_job`` before the task: the config numbered, its output directory, the
@@ -252,23 +330,17 @@ class _Job:
         (as ``HydraConfig.set_config`` leaves it)."""
         config = self.config
         _number(config, self.idx)
-        instance = HydraConfig.instance()
-        before, instance.cfg = instance.cfg, config
-        try:
-            output_dir = os.path.join(str(OmegaConf.select(config, "hydra.sweep.dir")),
-                                      str(OmegaConf.select(config, "hydra.sweep.subdir")))  # fmt: skip
-        finally:
-            instance.cfg = before
+        whole = _container(config)
+        self.hydra = hydra = whole.pop("hydra")  # its hydra node, unresolved; the rest is the task's
+        self.sweep_dir, self.subdir = (str(_resolved(config, hydra["sweep"], key, f"hydra.sweep.{key}")) for key in ("dir", "subdir"))
+        output_dir = os.path.join(self.sweep_dir, self.subdir)
         with read_write(config.hydra.runtime), open_dict(config.hydra.runtime):
-            config.hydra.runtime.output_dir = os.path.abspath(output_dir)
+            config.hydra.runtime.output_dir = hydra["runtime"]["output_dir"] = os.path.abspath(output_dir)
         OmegaConf.set_readonly(config.hydra, True)
         self.out = Path(output_dir)
-        task_cfg = pickle.loads(self.data if self.data is not None else pickle.dumps(config))  # faster than copy.deepcopy
-        with read_write(task_cfg), open_dict(task_cfg):
-            del task_cfg["hydra"]
+        task_cfg = _without_hydra(config)
         # Hydra's view of the job (HydraConfig's config): the config itself, rather than a copy of its hydra node
         self.ret.cfg, self.ret.hydra_cfg = task_cfg, config
-        self.hydra = hydra = OmegaConf.to_container(config.hydra, resolve=False, enum_to_str=True)
         self.ret.overrides = list(hydra["overrides"]["task"])
         self.out.mkdir(parents=True, exist_ok=True)
         self.chdir = bool(hydra["job"]["chdir"])
@@ -277,7 +349,7 @@ class _Job:
         if hydra["output_subdir"] is not None:
             records = Path(hydra["runtime"]["output_dir"]) / str(config.hydra.output_subdir)
             records.mkdir(parents=True, exist_ok=True)
-            _save(to_yaml(OmegaConf.to_container(task_cfg, resolve=False, enum_to_str=True)), records / "config.yaml")
+            _save(to_yaml(whole), records / "config.yaml")
             _save(to_yaml({"hydra": hydra}), records / "hydra.yaml")
             _save(to_yaml(hydra["overrides"]["task"]), records / "overrides.yaml")
 
@@ -381,7 +453,7 @@ class _Batch:
         tasks = []
         for job in ready:
             with job.around():
-                tasks.append((job.ret.cfg, *_sweep_job_args(HydraConfig.get())))
+                tasks.append((job.ret.cfg, *_sweep_job_args(job)))
         return execute.sweep_batch(tasks, around=lambda k: ready[k].around()) if tasks else []
 
     def end(self, job: _Job, value: Any) -> None:
