@@ -99,3 +99,32 @@ def test_the_task_config_is_a_copy_without_hydra(hydra_loader):
         key = "seed" if "seed" in cfg else "name"
         ours[key] = 12345  # independent of the config
         assert cfg[key] != 12345 and ours._get_node(key)._get_parent() is ours
+
+
+ODD_STRINGS = ["yes", "No", "y", "null", "NULL", "~", "", "nan", "inf", "Infinity", "-inf", "1e3", "1_000", "0x1F", "0o7", "+1", ".5",
+               "2001-12-14", "=", "<<", "-a", "- a", "a: b", "a:b", "a #b", "#a", "/tmp/x/1", "crossover=sbx,seed=1", "a,b", "[a]",
+               "{a}", "a b", "x" * 200, "a " * 60, "/" + "d" * 150, "a\nb", "é", "'q'", '"q"', "%a", "@a", "`a", "!a", "&a", "*a",
+               "?a", "|a", ">a", "a+b", "_a", "a.b.c", "7", "-7", "True", "off", "a=", "a-", "a,", "Null"]  # fmt: skip
+
+
+def test_yaml_texts_of_odd_values_at_any_depth_are_omegaconfs():
+    """``to_yaml`` (its texts written directly, kept, or PyYAML's) against ``OmegaConf.to_yaml``:
+    strings and numbers YAML reads as something else, long ones, in mappings and sequences at
+    several depths, written twice (the second time from the kept texts)."""
+    import random
+
+    rng = random.Random(7)
+    alphabet = "ab_/.=,+-:# 0129'\"~é\n"
+    strings = ODD_STRINGS + ["".join(rng.choice(alphabet) for _ in range(rng.randrange(0, 12))) for _ in range(300)]
+    values = [*strings, 0, -5, 10**30, True, False, 1.0, 1e-20, None, [], {}]
+    for depth in range(4):
+        for chunk in range(0, len(values), 40):
+            part = values[chunk : chunk + 40]
+            doc: dict = {"v": {f"k{k}": v for k, v in enumerate(part)}, "seq": part, "x" * 130: part[0], 5: part[-1]}
+            for _ in range(depth):
+                doc = {"p": doc}
+            cfg = OmegaConf.create(doc)
+            for _ in range(2):
+                assert _batch.to_yaml(OmegaConf.to_container(cfg, enum_to_str=True)) == OmegaConf.to_yaml(cfg)
+            seq = ListConfig(part)
+            assert _batch.to_yaml(OmegaConf.to_container(seq)) == OmegaConf.to_yaml(seq)

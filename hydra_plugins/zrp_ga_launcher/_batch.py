@@ -25,6 +25,7 @@ import contextlib
 import logging
 import os
 import pickle
+import re
 from collections.abc import Iterator
 from enum import Enum
 from pathlib import Path
@@ -129,12 +130,34 @@ _TEXTS_MAX = 4096
 def to_yaml(container: Any) -> str:
     """``OmegaConf.to_yaml(cfg)`` of the container ``OmegaConf.to_container(cfg, enum_to_str=True)``,
     the same text, made faster. In block style a mapping's text is its entries' texts one after
-    another, and the text of an entry depends only on the keys above it and its value: each
+    another, a sequence's its items' texts, and the text of an entry depends only on the keys
+    above it and its value (of an item, on the keys above its sequence and the item): each
     entry's text is kept and reused by the next jobs (the jobs of a sweep differ in a few
-    values), and the entries of a mapping not seen before are written one by one, the same way."""
+    values), and the entries of a mapping not seen before are written one by one, the same way.
+    A number or a name (a path, a run's ``override_dirname``) is written as PyYAML writes it."""
+    if isinstance(container, list) and container:
+        return "".join(_item((), None, v) for v in container)
     if not isinstance(container, dict) or not container:
         return _dump(container)
     return "".join(_entry((), k, v) for k, v in container.items())
+
+
+def _nested(parents: tuple, key: Any, value: Any) -> Any:
+    nested: Any = value if key is None else {key: value}
+    for p in reversed(parents):
+        nested = {p: nested}
+    return nested
+
+
+def _item(parents: tuple, key: Any, value: Any) -> str:
+    """The YAML lines of the item ``value`` of the sequence ``key`` inside the mappings
+    ``parents`` (``key`` None: the sequence is the document)."""
+    cache_key = (parents, key, "- ", repr(value))
+    text = _TEXTS.get(cache_key)
+    if text is None:
+        text = _dump(_nested(parents, key, [value])).split("\n", len(parents) + (key is not None))[-1]
+        _keep(cache_key, text)
+    return text
 
 
 def _entry(parents: tuple, key: Any, value: Any) -> str:
@@ -142,19 +165,36 @@ def _entry(parents: tuple, key: Any, value: Any) -> str:
     cache_key = (parents, key, repr(value))
     text = _TEXTS.get(cache_key)
     if text is None:
-        if isinstance(value, dict) and value and isinstance(key, str):
+        if ((isinstance(value, (dict, list)) and value) or type(value) is int or _plain(value)) and isinstance(key, str):
             head = _entry(parents, key, {})  # "<indent>key: {}"
             assert head.endswith(" {}\n"), head
-            text = head[: -len(" {}\n")] + "\n" + "".join(_entry((*parents, key), k, v) for k, v in value.items())
+            head = head[: -len(" {}\n")]
+            if isinstance(value, dict):
+                text = head + "\n" + "".join(_entry((*parents, key), k, v) for k, v in value.items())
+            elif isinstance(value, list):
+                text = head + "\n" + "".join(_item(parents, key, v) for v in value)
+            else:
+                text = f"{head} {value}\n"
         else:
-            nested: Any = {key: value}
-            for p in reversed(parents):
-                nested = {p: nested}
-            text = _dump(nested).split("\n", len(parents))[-1]
-        if len(_TEXTS) >= _TEXTS_MAX:
-            _TEXTS.clear()
-        _TEXTS[cache_key] = text
+            text = _dump(_nested(parents, key, value)).split("\n", len(parents))[-1]
+        _keep(cache_key, text)
     return text
+
+
+_PLAIN = re.compile(r"[A-Za-z_/][A-Za-z0-9_./=,+-]*")
+
+
+def _plain(value: Any) -> bool:
+    """Whether PyYAML writes the string ``value`` as it is (plain, on one line whatever its
+    length): letters, digits and a few signs that start nothing in YAML, read back as a string."""
+    return (type(value) is str and _PLAIN.fullmatch(value) is not None and value not in YAML_BOOLS
+            and value not in ("null", "Null", "NULL") and not _reads_as(float, value))  # fmt: skip
+
+
+def _keep(cache_key: tuple, text: str) -> None:
+    if len(_TEXTS) >= _TEXTS_MAX:
+        _TEXTS.clear()
+    _TEXTS[cache_key] = text
 
 
 def _dump(container: Any) -> str:
