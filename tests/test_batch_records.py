@@ -128,3 +128,25 @@ def test_yaml_texts_of_odd_values_at_any_depth_are_omegaconfs():
                 assert _batch.to_yaml(OmegaConf.to_container(cfg, enum_to_str=True)) == OmegaConf.to_yaml(cfg)
             seq = ListConfig(part)
             assert _batch.to_yaml(OmegaConf.to_container(seq)) == OmegaConf.to_yaml(seq)
+
+
+def test_a_batch_leaves_the_collector_as_it_found_it():
+    """The batch's collector settings (objects from before it frozen, fewer collections) undone
+    after it, also when it fails; a process that froze its own objects keeps them frozen."""
+    import gc
+
+    before = gc.get_threshold()
+    assert gc.get_freeze_count() == 0
+    with pytest.raises(KeyboardInterrupt), _batch._few_collections():
+        kept = [object()]
+        assert gc.get_freeze_count() > 0 and gc.get_threshold()[0] >= 20_000
+        raise KeyboardInterrupt
+    assert gc.get_freeze_count() == 0 and gc.get_threshold() == before and kept
+    gc.freeze()
+    try:
+        frozen = gc.get_freeze_count()
+        with _batch._few_collections():
+            pass
+        assert gc.get_freeze_count() == frozen
+    finally:
+        gc.unfreeze()
