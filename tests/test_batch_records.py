@@ -150,3 +150,22 @@ def test_a_batch_leaves_the_collector_as_it_found_it():
         assert gc.get_freeze_count() == frozen
     finally:
         gc.unfreeze()
+
+
+def test_values_read_from_the_container_are_resolved_as_omegaconf_resolves_them():
+    """``_resolved``: a job's value from its unresolved container, or from OmegaConf where it has
+    interpolations (a sweep's ``subdir``, an ``env_set`` naming other values) or is missing."""
+    cfg = OmegaConf.create({"hydra": {"job": {"num": 3, "env_set": {"A": "${x}/a", "B": "b"}, "plain": {"C": "c"}},
+                                      "sweep": {"dir": "/d", "subdir": "${hydra.job.num}", "missing": "???"},
+                                      "task": ["x=1", "${x}"]}, "x": "y"})  # fmt: skip
+    raw = _batch._container(cfg)
+    for path in ("hydra.job.env_set", "hydra.job.plain", "hydra.sweep.dir", "hydra.sweep.subdir", "hydra.task", "hydra.sweep.missing"):
+        node = raw
+        for k in path.split("."):
+            node = node[k]
+        ours = _batch._resolved(cfg, node, path)
+        theirs = OmegaConf.select(cfg, path)
+        if isinstance(theirs, (DictConfig, ListConfig)):
+            theirs = OmegaConf.to_container(theirs, resolve=True)
+        assert ours == theirs and type(ours) is type(theirs), path
+    assert _batch._resolved(cfg, raw["hydra"]["sweep"]["subdir"], "hydra.sweep.subdir") == 3

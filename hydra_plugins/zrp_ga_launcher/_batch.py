@@ -296,15 +296,12 @@ def _sweep_job_args(job: _Job) -> tuple[Path, Any, dict]:
     """A job of a sweep as the run layer takes it (``execute.sweep_job``: its directory, its
     place in the sweep, the groups' options), from Hydra's config of the job, as
     ``zrp_ga.cli.main`` makes them (not imported from there: the command line imports this
-    launcher): from the values its ``prepare`` read, resolved (through Hydra's view of the job,
-    ``HydraConfig.get()``) where they have interpolations."""
+    launcher): from the values its ``prepare`` read, resolved where they have interpolations."""
     from zrp_ga.run.directory import Sweep
 
     hydra = job.hydra
-    task, choices = hydra["overrides"]["task"], hydra["runtime"]["choices"]
-    if any(isinstance(v, str) and "${" in v for v in [*task, *choices.values()]):
-        hc = HydraConfig.get()
-        task, choices = list(hc.overrides.task), dict(hc.runtime.choices)
+    task = _resolved(job.config, hydra["overrides"]["task"], "hydra.overrides.task")
+    choices = _resolved(job.config, hydra["runtime"]["choices"], "hydra.runtime.choices")
     sweep = Sweep(Path(job.sweep_dir), job.idx, tuple(task), job.subdir)
     return Path(hydra["runtime"]["output_dir"]), sweep, dict(choices)
 
@@ -323,16 +320,16 @@ def _container(node: Any) -> Any:
     return content.name if isinstance(content, Enum) else content
 
 
-def _resolved(config: DictConfig, raw: dict, key: str, path: str) -> Any:
-    """The value at ``path`` in ``config``, resolved as Hydra's view of the job sees it, whose
-    unresolved value is ``raw[key]``: that one when it has no interpolation."""
-    value = raw[key]
-    if not (isinstance(value, str) and "${" in value):
-        return value
+def _resolved(config: DictConfig, raw: Any, path: str) -> Any:
+    """The value at ``path`` in ``config`` as Hydra's view of the job resolves it, whose
+    unresolved container is ``raw``: ``raw`` itself when it has no interpolation."""
+    if next(_interpolations(raw), None) is None and not (isinstance(raw, str) and raw == "???"):
+        return raw
     instance = HydraConfig.instance()
     before, instance.cfg = instance.cfg, config
     try:
-        return OmegaConf.select(config, path)
+        value = OmegaConf.select(config, path)
+        return OmegaConf.to_container(value, resolve=True) if isinstance(value, (DictConfig, ListConfig)) else value
     finally:
         instance.cfg = before
 
@@ -372,7 +369,7 @@ class _Job:
         _number(config, self.idx)
         whole = _container(config)
         self.hydra = hydra = whole.pop("hydra")  # its hydra node, unresolved; the rest is the task's
-        self.sweep_dir, self.subdir = (str(_resolved(config, hydra["sweep"], key, f"hydra.sweep.{key}")) for key in ("dir", "subdir"))
+        self.sweep_dir, self.subdir = (str(_resolved(config, hydra["sweep"][key], f"hydra.sweep.{key}")) for key in ("dir", "subdir"))
         output_dir = os.path.join(self.sweep_dir, self.subdir)
         with read_write(config.hydra.runtime), open_dict(config.hydra.runtime):
             config.hydra.runtime.output_dir = hydra["runtime"]["output_dir"] = os.path.abspath(output_dir)
@@ -385,9 +382,9 @@ class _Job:
         self.out.mkdir(parents=True, exist_ok=True)
         self.chdir = bool(hydra["job"]["chdir"])
         self.ret.working_dir = output_dir if self.chdir else os.getcwd()
-        self.env = dict(config.hydra.job.env_set)
+        self.env = dict(_resolved(config, hydra["job"]["env_set"], "hydra.job.env_set"))
         if hydra["output_subdir"] is not None:
-            records = Path(hydra["runtime"]["output_dir"]) / str(config.hydra.output_subdir)
+            records = Path(hydra["runtime"]["output_dir"]) / str(_resolved(config, hydra["output_subdir"], "hydra.output_subdir"))
             records.mkdir(parents=True, exist_ok=True)
             _save(to_yaml(whole), records / "config.yaml")
             _save(to_yaml({"hydra": hydra}), records / "hydra.yaml")
@@ -505,8 +502,7 @@ class _Batch:
             ret.return_value, ret.status = value, JobStatus.FAILED
         else:
             try:
-                hc = HydraConfig.get()
-                summary.console(job.out, (hc.job.num, " ".join(ret.overrides)))
+                summary.console(job.out, (job.idx, " ".join(ret.overrides)))  # hydra.job.num
                 ret.return_value, ret.status = value, JobStatus.COMPLETED
             except Exception as exc:
                 ret.return_value, ret.status = exc, JobStatus.FAILED
