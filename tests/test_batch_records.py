@@ -9,6 +9,7 @@ import enum
 import pickle
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import pytest
 from omegaconf import MISSING, DictConfig, ListConfig, OmegaConf, open_dict
@@ -169,3 +170,40 @@ def test_values_read_from_the_container_are_resolved_as_omegaconf_resolves_them(
             theirs = OmegaConf.to_container(theirs, resolve=True)
         assert ours == theirs and type(ours) is type(theirs), path
     assert _batch._resolved(cfg, raw["hydra"]["sweep"]["subdir"], "hydra.sweep.subdir") == 3
+
+
+@dataclass
+class Typed:
+    s: str = "x"
+    a: Any = None
+    i: int = 3
+    f: float = 1.0
+    b: bool = True
+    e: Color = Color.RED
+    n: str | None = None
+    m: str = MISSING
+    path: str = "/runs/a b"
+    inter: str = "${i}"
+    to_s: str = ""
+    to_a: Any = None
+
+
+def test_interpolations_read_from_the_values_they_name_are_omegaconfs():
+    """``_interpolated`` against OmegaConf's resolution of the same string in a string node and
+    an untyped one: the strings it resolves itself (naming numbers, strings, booleans) and
+    those it leaves to OmegaConf (enums, None, missing, interpolated values, resolvers, relative
+    keys, escapes, quotes)."""
+    own = ["${i}", "${f}", "${b}", "${s}", "${path}", "${path}/${s}.log", "${i}${f}", "a${i}b", "${sub.k}", "${sub.k}-${i}"]
+    others = ["${e}", "x${e}", "${n}", "${m}", "${inter}", "${oc.env:HOME}", "\\${i}", "${.i}", "'${i}'", "${nope}", "${sub}", "plain",
+              "$${i}", "${sub.nope}"]  # fmt: skip
+    for text in own + others:
+        cfg = OmegaConf.structured(Typed)
+        with open_dict(cfg):
+            cfg.sub = {"k": "v"}
+        for field_name in ("to_s", "to_a"):
+            cfg[field_name] = text
+            ours = _batch._interpolated(text, cfg, cfg._get_node(field_name))
+            assert (ours is _batch._UNKNOWN) == (text in others), (text, field_name)
+            if ours is not _batch._UNKNOWN:
+                theirs = cfg[field_name]
+                assert ours == theirs and type(ours) is type(theirs), (text, field_name)
