@@ -121,7 +121,8 @@ def test_yaml_texts_of_odd_values_at_any_depth_are_omegaconfs():
     for depth in range(4):
         for chunk in range(0, len(values), 40):
             part = values[chunk : chunk + 40]
-            doc: dict = {"v": {f"k{k}": v for k, v in enumerate(part)}, "seq": part, "x" * 130: part[0], 5: part[-1]}
+            doc: dict = {"v": {f"k{k}": v for k, v in enumerate(part)}, "seq": part, "x" * 130: part[0], 5: part[-1],
+                         "y" * 130: part, "z" * 130: {"a": part[1], "b": part}, "w" * 130: 7, "u" * 130: "/a/b"}  # fmt: skip
             for _ in range(depth):
                 doc = {"p": doc}
             cfg = OmegaConf.create(doc)

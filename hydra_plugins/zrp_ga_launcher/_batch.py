@@ -165,10 +165,12 @@ def _entry(parents: tuple, key: Any, value: Any) -> str:
     cache_key = (parents, key, repr(value))
     text = _TEXTS.get(cache_key)
     if text is None:
+        head = ""
         if ((isinstance(value, (dict, list)) and value) or type(value) is int or _plain(value)) and isinstance(key, str):
-            head = _entry(parents, key, {})  # "<indent>key: {}"
+            head = _entry(parents, key, {})  # "<indent>key: {}", on one line unless the key is long
             assert head.endswith(" {}\n"), head
             head = head[: -len(" {}\n")]
+        if head and "\n" not in head:
             if isinstance(value, dict):
                 text = head + "\n" + "".join(_entry((*parents, key), k, v) for k, v in value.items())
             elif isinstance(value, list):
