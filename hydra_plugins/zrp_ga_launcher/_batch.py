@@ -14,6 +14,12 @@ handlers whose settings differ from job to job (the log file, named after the jo
 directory) are one per job, attached while that job's work runs (``around`` of
 ``sweep_batch``) and open only while it writes.
 
+What a job costs besides its run is kept small: its config's containers and the plain
+interpolations of its directory and log file's name are read from the nodes themselves (not
+through OmegaConf's checked accessors and its parser), the records' texts from kept texts, and
+the garbage collector is kept off the objects from before the batch (``python
+tests/launcher_overhead.py``: 7 CPU-ms a job on the operator grid, from 23).
+
 Callable in any process that got the pickled configs and ``hydra_context`` (a worker of this
 launcher, or a cluster's job): :func:`run_batch`. A task function other than ``zrp_ga.cli.main``
 runs its jobs one at a time through Hydra's ``run_job``. Hydra's public interfaces only.
@@ -22,11 +28,12 @@ runs its jobs one at a time through Hydra's ``run_job``. Hydra's public interfac
 from __future__ import annotations
 
 import contextlib
-import copy
 import logging
 import os
 import pickle
+import re
 from collections.abc import Iterator
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +41,7 @@ import yaml
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.utils import JobReturn, JobRuntime, JobStatus, configure_log, env_override, run_job, setup_globals
 from hydra.types import HydraContext, TaskFunction
-from omegaconf import DictConfig, ListConfig, OmegaConf, open_dict, read_write
+from omegaconf import AnyNode, DictConfig, ListConfig, OmegaConf, StringNode, open_dict, read_write
 
 log = logging.getLogger(__name__)
 
@@ -46,7 +53,30 @@ def run_batch(jobs: list[tuple[int, DictConfig]], hydra_context: HydraContext, t
     setup_globals()  # Hydra's resolvers (a fresh process)
     if not is_zrp_ga(task_function):
         return [run_alone(idx, pickle.loads(cfg) if isinstance(cfg, bytes) else cfg, hydra_context, task_function) for idx, cfg in jobs]
-    return _Batch(jobs, hydra_context, task_function).run()
+    with _few_collections():
+        return _Batch(jobs, hydra_context, task_function).run()
+
+
+@contextlib.contextmanager
+def _few_collections() -> Iterator[None]:
+    """Python's cyclic garbage collector kept off the objects that were there before the batch
+    (Hydra's, numpy's, scipy's, the process's caches: each full collection went over all of them,
+    about half the batch's own CPU besides its runs) and run less often while the jobs' configs
+    are unpickled (many objects, little garbage). Only the objects made during the batch are
+    examined; the others again after it. Nothing a run computes depends on it."""
+    import gc
+
+    frozen = gc.get_freeze_count() == 0  # a process that froze its objects itself keeps them so
+    if frozen:
+        gc.freeze()
+    before = gc.get_threshold()
+    gc.set_threshold(max(before[0], 20_000), *before[1:])
+    try:
+        yield
+    finally:
+        gc.set_threshold(*before)
+        if frozen:
+            gc.unfreeze()
 
 
 def run_alone(idx: int, config: DictConfig, hydra_context: HydraContext, task_function: TaskFunction) -> JobReturn:
@@ -106,12 +136,34 @@ _TEXTS_MAX = 4096
 def to_yaml(container: Any) -> str:
     """``OmegaConf.to_yaml(cfg)`` of the container ``OmegaConf.to_container(cfg, enum_to_str=True)``,
     the same text, made faster. In block style a mapping's text is its entries' texts one after
-    another, and the text of an entry depends only on the keys above it and its value: each
+    another, a sequence's its items' texts, and the text of an entry depends only on the keys
+    above it and its value (of an item, on the keys above its sequence and the item): each
     entry's text is kept and reused by the next jobs (the jobs of a sweep differ in a few
-    values), and the entries of a mapping not seen before are written one by one, the same way."""
+    values), and the entries of a mapping not seen before are written one by one, the same way.
+    A number or a name (a path, a run's ``override_dirname``) is written as PyYAML writes it."""
+    if isinstance(container, list) and container:
+        return "".join(_item((), None, v) for v in container)
     if not isinstance(container, dict) or not container:
         return _dump(container)
     return "".join(_entry((), k, v) for k, v in container.items())
+
+
+def _nested(parents: tuple, key: Any, value: Any) -> Any:
+    nested: Any = value if key is None else {key: value}
+    for p in reversed(parents):
+        nested = {p: nested}
+    return nested
+
+
+def _item(parents: tuple, key: Any, value: Any) -> str:
+    """The YAML lines of the item ``value`` of the sequence ``key`` inside the mappings
+    ``parents`` (``key`` None: the sequence is the document)."""
+    cache_key = (parents, key, "- ", repr(value))
+    text = _TEXTS.get(cache_key)
+    if text is None:
+        text = _dump(_nested(parents, key, [value])).split("\n", len(parents) + (key is not None))[-1]
+        _keep(cache_key, text)
+    return text
 
 
 def _entry(parents: tuple, key: Any, value: Any) -> str:
@@ -119,19 +171,38 @@ def _entry(parents: tuple, key: Any, value: Any) -> str:
     cache_key = (parents, key, repr(value))
     text = _TEXTS.get(cache_key)
     if text is None:
-        if isinstance(value, dict) and value and isinstance(key, str):
-            head = _entry(parents, key, {})  # "<indent>key: {}"
+        head = ""
+        if ((isinstance(value, (dict, list)) and value) or type(value) is int or _plain(value)) and isinstance(key, str):
+            head = _entry(parents, key, {})  # "<indent>key: {}", on one line unless the key is long
             assert head.endswith(" {}\n"), head
-            text = head[: -len(" {}\n")] + "\n" + "".join(_entry((*parents, key), k, v) for k, v in value.items())
+            head = head[: -len(" {}\n")]
+        if head and "\n" not in head:
+            if isinstance(value, dict):
+                text = head + "\n" + "".join(_entry((*parents, key), k, v) for k, v in value.items())
+            elif isinstance(value, list):
+                text = head + "\n" + "".join(_item(parents, key, v) for v in value)
+            else:
+                text = f"{head} {value}\n"
         else:
-            nested: Any = {key: value}
-            for p in reversed(parents):
-                nested = {p: nested}
-            text = _dump(nested).split("\n", len(parents))[-1]
-        if len(_TEXTS) >= _TEXTS_MAX:
-            _TEXTS.clear()
-        _TEXTS[cache_key] = text
+            text = _dump(_nested(parents, key, value)).split("\n", len(parents))[-1]
+        _keep(cache_key, text)
     return text
+
+
+_PLAIN = re.compile(r"[A-Za-z_/][A-Za-z0-9_./=,+-]*")
+
+
+def _plain(value: Any) -> bool:
+    """Whether PyYAML writes the string ``value`` as it is (plain, on one line whatever its
+    length): letters, digits and a few signs that start nothing in YAML, read back as a string."""
+    return (type(value) is str and _PLAIN.fullmatch(value) is not None and value not in YAML_BOOLS
+            and value not in ("null", "Null", "NULL") and not _reads_as(float, value))  # fmt: skip
+
+
+def _keep(cache_key: tuple, text: str) -> None:
+    if len(_TEXTS) >= _TEXTS_MAX:
+        _TEXTS.clear()
+    _TEXTS[cache_key] = text
 
 
 def _dump(container: Any) -> str:
@@ -202,17 +273,22 @@ def _interpolations(raw: Any, path: tuple = ()) -> Iterator[tuple]:
         yield path
 
 
-def _resolve(node: DictConfig, like: dict, paths: list[tuple]) -> dict:
-    """``OmegaConf.to_container(node, resolve=True)`` of a ``node`` whose text (unresolved) is
-    that of the resolved ``like``'s node, and whose interpolations are at ``paths``: ``like``
-    with those resolved in ``node``."""
-    out = copy.deepcopy(like)
+def _resolve(node: DictConfig, like: dict, paths: list[tuple], raw: dict, config: DictConfig) -> dict:
+    """``OmegaConf.to_container(node, resolve=True)`` of a ``node`` of ``config`` whose text
+    (unresolved) is ``raw``, that of the resolved ``like``'s node, and whose interpolations are
+    at ``paths``: ``like`` with those resolved in ``node``."""
+    out = _copy(like)
     for path in paths:
-        value: Any = node
+        text = raw
         for k in path:
-            value = value[k]
-        if isinstance(value, (DictConfig, ListConfig)):
-            value = OmegaConf.to_container(value, resolve=True)
+            text = text[k]
+        value = _interpolated(text, config, _node_at(node, path))
+        if value is _UNKNOWN:
+            value = node
+            for k in path:
+                value = value[k]
+            if isinstance(value, (DictConfig, ListConfig)):
+                value = OmegaConf.to_container(value, resolve=True)
         target = out
         for k in path[:-1]:
             target = target[k]
@@ -220,15 +296,105 @@ def _resolve(node: DictConfig, like: dict, paths: list[tuple]) -> dict:
     return out
 
 
-def _sweep_job_args(hc: Any) -> tuple[Path, Any, dict]:
+def _node_at(node: Any, path: tuple) -> Any:
+    for k in path:
+        node = node._get_node(k)
+    return node
+
+
+_UNKNOWN = object()
+_NODE_INTERPOLATION = re.compile(r"\$\{([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*)\}")
+
+
+def _interpolated(text: Any, config: DictConfig, node: Any) -> Any:
+    """The value of the string ``text`` of ``config``'s ``node`` (a string or any type's) as
+    OmegaConf resolves it, when all its interpolations name values of ``config`` by their keys
+    (``${hydra.job.num}``, ``${hydra.runtime.output_dir}/${hydra.job.name}.log``) that are
+    numbers or strings without interpolations: from those values (OmegaConf parses each such
+    string, ~0.3 ms); else ``_UNKNOWN``."""
+    if not isinstance(text, str) or not isinstance(node, (AnyNode, StringNode)):
+        return _UNKNOWN
+    parts = _NODE_INTERPOLATION.split(text)
+    if len(parts) == 1 or any(c in t for t in parts[0::2] for c in "${}\\'\""):
+        return _UNKNOWN  # no interpolation, or one of another kind
+    values = []
+    for key in parts[1::2]:
+        try:
+            value = _node_at(config, tuple(key.split(".")))._value()
+        except Exception:  # no such key: OmegaConf says so
+            return _UNKNOWN
+        if type(value) not in (str, int, float, bool) or (isinstance(value, str) and ("${" in value or value == "???")):
+            return _UNKNOWN
+        values.append(value)
+    if parts[0::2] == ["", ""]:  # the value itself, as the node takes it
+        return str(values[0]) if isinstance(node, StringNode) else values[0]
+    out = [parts[0]]
+    for value, after in zip(values, parts[2::2]):
+        out += [str(value), after]
+    return "".join(out)
+
+
+def _copy(container: Any) -> Any:
+    """A copy of a container (``copy.deepcopy`` of its dicts and lists; their leaves are immutable)."""
+    if isinstance(container, dict):
+        return {k: _copy(v) for k, v in container.items()}
+    if isinstance(container, list):
+        return [_copy(v) for v in container]
+    return container
+
+
+def _sweep_job_args(job: _Job) -> tuple[Path, Any, dict]:
     """A job of a sweep as the run layer takes it (``execute.sweep_job``: its directory, its
     place in the sweep, the groups' options), from Hydra's config of the job, as
     ``zrp_ga.cli.main`` makes them (not imported from there: the command line imports this
-    launcher)."""
+    launcher): from the values its ``prepare`` read, resolved where they have interpolations."""
     from zrp_ga.run.directory import Sweep
 
-    sweep = Sweep(Path(hc.sweep.dir), int(hc.job.num), tuple(hc.overrides.task), str(hc.sweep.subdir))
-    return Path(hc.runtime.output_dir), sweep, dict(hc.runtime.choices)
+    hydra = job.hydra
+    task = _resolved(job.config, hydra["overrides"]["task"], "hydra.overrides.task")
+    choices = _resolved(job.config, hydra["runtime"]["choices"], "hydra.runtime.choices")
+    sweep = Sweep(Path(job.sweep_dir), job.idx, tuple(task), job.subdir)
+    return Path(hydra["runtime"]["output_dir"]), sweep, dict(choices)
+
+
+def _container(node: Any) -> Any:
+    """``OmegaConf.to_container(node, resolve=False, enum_to_str=True)`` of a config node, read
+    from the nodes' own contents (what ``to_container`` reads through its checked accessors,
+    several times slower)."""
+    content = node._value()
+    if isinstance(node, DictConfig):
+        if not isinstance(content, dict):  # None, missing ("???") or an interpolation
+            return content
+        return {(k.name if isinstance(k, Enum) else k): _container(v) for k, v in content.items()}
+    if isinstance(node, ListConfig):
+        return [_container(v) for v in content] if isinstance(content, list) else content
+    return content.name if isinstance(content, Enum) else content
+
+
+def _resolved(config: DictConfig, raw: Any, path: str) -> Any:
+    """The value at ``path`` in ``config`` as Hydra's view of the job resolves it, whose
+    unresolved container is ``raw``: ``raw`` itself when it has no interpolation."""
+    if next(_interpolations(raw), None) is None and not (isinstance(raw, str) and raw == "???"):
+        return raw
+    instance = HydraConfig.instance()
+    before, instance.cfg = instance.cfg, config
+    try:
+        value = OmegaConf.select(config, path)
+        return OmegaConf.to_container(value, resolve=True) if isinstance(value, (DictConfig, ListConfig)) else value
+    finally:
+        instance.cfg = before
+
+
+def _without_hydra(config: DictConfig) -> DictConfig:
+    """A copy of ``config`` without its ``hydra`` node (Hydra's ``run_job`` deep-copies the
+    config and deletes it): the config pickled without it, unpickled."""
+    content = config.__dict__["_content"]
+    config.__dict__["_content"] = {k: v for k, v in content.items() if k != "hydra"}
+    try:
+        data = pickle.dumps(config)
+    finally:
+        config.__dict__["_content"] = content
+    return pickle.loads(data)
 
 
 # --- the batch -----------------------------------------------------------------------------------------
@@ -236,7 +402,6 @@ class _Job:
     """One job of the batch: its configs, its directory, its log files and its return."""
 
     def __init__(self, idx: int, config: DictConfig | bytes):
-        self.data = config if isinstance(config, bytes) else None  # the config, pickled
         self.idx, self.config = idx, pickle.loads(config) if isinstance(config, bytes) else config
         self.ret = JobReturn()
         self.out = Path()
@@ -244,6 +409,7 @@ class _Job:
         self.error: Exception | None = None
         self.chdir, self.env = False, {}
         self.hydra: dict = {}  # its hydra node, as a container (unresolved)
+        self.sweep_dir, self.subdir = "", ""  # hydra.sweep's, resolved
 
     def prepare(self) -> None:
         """As ``run_job`` before the task: the config numbered, its output directory, the
@@ -252,34 +418,33 @@ class _Job:
         (as ``HydraConfig.set_config`` leaves it)."""
         config = self.config
         _number(config, self.idx)
-        instance = HydraConfig.instance()
-        before, instance.cfg = instance.cfg, config
-        try:
-            output_dir = os.path.join(str(OmegaConf.select(config, "hydra.sweep.dir")),
-                                      str(OmegaConf.select(config, "hydra.sweep.subdir")))  # fmt: skip
-        finally:
-            instance.cfg = before
+        whole = _container(config)
+        self.hydra = hydra = whole.pop("hydra")  # its hydra node, unresolved; the rest is the task's
+        self.sweep_dir, self.subdir = (self._text(hydra["sweep"][key], f"hydra.sweep.{key}") for key in ("dir", "subdir"))
+        output_dir = os.path.join(self.sweep_dir, self.subdir)
         with read_write(config.hydra.runtime), open_dict(config.hydra.runtime):
-            config.hydra.runtime.output_dir = os.path.abspath(output_dir)
+            config.hydra.runtime.output_dir = hydra["runtime"]["output_dir"] = os.path.abspath(output_dir)
         OmegaConf.set_readonly(config.hydra, True)
         self.out = Path(output_dir)
-        task_cfg = pickle.loads(self.data if self.data is not None else pickle.dumps(config))  # faster than copy.deepcopy
-        with read_write(task_cfg), open_dict(task_cfg):
-            del task_cfg["hydra"]
+        task_cfg = _without_hydra(config)
         # Hydra's view of the job (HydraConfig's config): the config itself, rather than a copy of its hydra node
         self.ret.cfg, self.ret.hydra_cfg = task_cfg, config
-        self.hydra = hydra = OmegaConf.to_container(config.hydra, resolve=False, enum_to_str=True)
         self.ret.overrides = list(hydra["overrides"]["task"])
         self.out.mkdir(parents=True, exist_ok=True)
         self.chdir = bool(hydra["job"]["chdir"])
         self.ret.working_dir = output_dir if self.chdir else os.getcwd()
-        self.env = dict(config.hydra.job.env_set)
+        self.env = dict(_resolved(config, hydra["job"]["env_set"], "hydra.job.env_set"))
         if hydra["output_subdir"] is not None:
-            records = Path(hydra["runtime"]["output_dir"]) / str(config.hydra.output_subdir)
+            records = Path(hydra["runtime"]["output_dir"]) / self._text(hydra["output_subdir"], "hydra.output_subdir")
             records.mkdir(parents=True, exist_ok=True)
-            _save(to_yaml(OmegaConf.to_container(task_cfg, resolve=False, enum_to_str=True)), records / "config.yaml")
+            _save(to_yaml(whole), records / "config.yaml")
             _save(to_yaml({"hydra": hydra}), records / "hydra.yaml")
             _save(to_yaml(hydra["overrides"]["task"]), records / "overrides.yaml")
+
+    def _text(self, raw: Any, path: str) -> str:
+        """The string of the value at ``path`` (unresolved: ``raw``), resolved."""
+        value = _interpolated(raw, self.config, _node_at(self.config, tuple(path.split("."))))
+        return str(value if value is not _UNKNOWN else _resolved(self.config, raw, path))
 
     @contextlib.contextmanager
     def around(self) -> Iterator[None]:
@@ -357,7 +522,7 @@ class _Batch:
         paths = list(_interpolations(raw))
         for job in ready[1:]:
             with job.around():
-                confs.append(_resolve(job.config.hydra.job_logging, confs[0], paths) if job.hydra["job_logging"] == raw
+                confs.append(_resolve(job.config.hydra.job_logging, confs[0], paths, raw, job.config) if job.hydra["job_logging"] == raw
                              else OmegaConf.to_container(job.config.hydra.job_logging, resolve=True))  # fmt: skip
         root = logging.getLogger()
         handlers = {h.name: h for h in root.handlers if h.name}
@@ -381,7 +546,7 @@ class _Batch:
         tasks = []
         for job in ready:
             with job.around():
-                tasks.append((job.ret.cfg, *_sweep_job_args(HydraConfig.get())))
+                tasks.append((job.ret.cfg, *_sweep_job_args(job)))
         return execute.sweep_batch(tasks, around=lambda k: ready[k].around()) if tasks else []
 
     def end(self, job: _Job, value: Any) -> None:
@@ -393,8 +558,7 @@ class _Batch:
             ret.return_value, ret.status = value, JobStatus.FAILED
         else:
             try:
-                hc = HydraConfig.get()
-                summary.console(job.out, (hc.job.num, " ".join(ret.overrides)))
+                summary.console(job.out, (job.idx, " ".join(ret.overrides)))  # hydra.job.num
                 ret.return_value, ret.status = value, JobStatus.COMPLETED
             except Exception as exc:
                 ret.return_value, ret.status = exc, JobStatus.FAILED
