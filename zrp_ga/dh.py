@@ -134,9 +134,9 @@ class DHTable:
         Q = np.atleast_2d(q)
         revolute = np.array([t == "R" for t in self.joint_types])
         T = np.broadcast_to(self.base, (len(Q), 4, 4))
-        for i in range(self.n):
-            theta = self.theta[i] + np.where(revolute[i], Q[:, i], 0.0)
-            d = self.d[i] + np.where(revolute[i], 0.0, Q[:, i])
+        for i in range(self.n):  # the fixed one of theta and d a number, its link factor one matrix
+            theta = self.theta[i] + Q[:, i] if revolute[i] else self.theta[i] + 0.0
+            d = self.d[i] + 0.0 if revolute[i] else self.d[i] + Q[:, i]
             T = T @ _link(self.convention, theta, d, self.a[i], self.alpha[i], self.beta[i])
         T = T @ self.tool
         return T[0] if q.ndim == 1 else T
@@ -183,6 +183,26 @@ def to_dh(
     >>> np.round(np.degrees(table.alpha)).tolist(), mismatch.position_m < 1e-15
     ([90.0, 0.0, -90.0, 90.0, -90.0, 0.0], True)
     """
+    return _to_dh(robot, convention, parallel_tol, samples, seed, max_offset, base_x)
+
+
+def tables(robot: ZRPRobot, samples: int = 200, seed: int = 0) -> dict[str, tuple[DHTable, DHMismatch]]:
+    """``{convention: to_dh(robot, convention, samples=samples, seed=seed)}`` for both
+    conventions, the arm's own hand poses at the joint samples computed once for both.
+
+    >>> from zrp_ga import robots
+    >>> sorted(tables(robots.get("puma560"), samples=5))
+    ['dh', 'mdh']
+    """
+    reference = _reference(robot, samples, seed)
+    return {c: _to_dh(robot, c, PARALLEL_TOL, samples, seed, None, None, reference) for c in CONVENTIONS}
+
+
+def _to_dh(
+    robot: ZRPRobot, convention: str, parallel_tol: float, samples: int, seed: int, max_offset: float | None,
+    base_x: ArrayLike | None, reference: tuple[Array, Array, Array] | None = None,
+) -> tuple[DHTable, DHMismatch]:
+    """:func:`to_dh`; ``reference``: ``_reference(robot, samples, seed)`` if already computed."""
     if convention not in CONVENTIONS:
         raise ValueError(f"convention: {convention!r}, expected one of {', '.join(CONVENTIONS)}")
     points = np.cumsum(robot.b0, axis=0)  # points[i]: on axis i+1; points[n]: the end point
@@ -196,7 +216,7 @@ def to_dh(
     last = table.forward(np.zeros(robot.n))  # frame n of the tidied table
     table = _with_tool(table, _tidy(np.linalg.inv(last) @ hand))
     notes = _hayati_notes(robot, table, far) + _axis_notes(robot, axis_frames[:-1])
-    return table, _mismatch(robot, table, samples, seed, notes)
+    return table, _mismatch(robot, table, _reference(robot, samples, seed) if reference is None else reference, notes)
 
 
 def _table(convention: str, a: Array, alpha: Array, d: Array, theta: Array, robot: ZRPRobot, base: Array,
@@ -504,31 +524,39 @@ def _mdh_row(rel: Array) -> tuple[float, float, float, float]:
 def _row_link(convention: str, row: tuple[float, ...]) -> Array:
     """(4, 4) transform of one row (a, alpha, d, theta[, beta]) at q = 0."""
     a, alpha, d, theta, *beta = row
-    return _link(convention, np.array([theta]), np.array([d]), a, alpha, beta[0] if beta else 0.0)[0]
+    return _link(convention, theta, d, a, alpha, beta[0] if beta else 0.0)
 
 
-def _link(convention: str, theta: Array, d: Array, a: float, alpha: float, beta: float = 0.0) -> Array:
-    """(M, 4, 4) link transforms for M values of theta and d (arrays of shape (M,))."""
-    const = lambda v: np.full(d.shape, v, dtype=d.dtype)
-    tilt = _rot(1, const(beta)) if beta else np.eye(4)
+def _link(convention: str, theta: Array | float, d: Array | float, a: float, alpha: float, beta: float = 0.0) -> Array:
+    """(M, 4, 4) link transforms for M values of theta and d (arrays of shape (M,)); (4, 4) for
+    numbers. Each factor that is the same for all M is one (4, 4) matrix: numpy's matmul takes
+    the same products in the same order for a broadcast factor, so the links are the same to
+    the last bit as with M copies of it."""
+    tilt = _rot(1, beta) if beta else _EYE
     if convention == "dh":
-        return _rot(2, theta) @ _shift(2, d) @ _shift(0, const(a)) @ _rot(0, const(alpha)) @ tilt
-    return _rot(0, const(alpha)) @ _shift(0, const(a)) @ tilt @ _rot(2, theta) @ _shift(2, d)
+        return _rot(2, theta) @ _shift(2, d) @ _shift(0, a) @ _rot(0, alpha) @ tilt
+    return _rot(0, alpha) @ _shift(0, a) @ tilt @ _rot(2, theta) @ _shift(2, d)
 
 
-def _rot(axis: int, angle: Array) -> Array:
-    """(M, 4, 4) rotations by ``angle`` (M,) rad about coordinate axis 0 (x), 1 (y) or 2 (z)."""
+_EYE = np.eye(4)
+_EYE.setflags(write=False)
+
+
+def _rot(axis: int, angle: Array | float) -> Array:
+    """(M, 4, 4) rotations by ``angle`` (M,) rad about coordinate axis 0 (x), 1 (y) or 2 (z);
+    (4, 4) for a number."""
     j, k = [(1, 2), (2, 0), (0, 1)][axis]
-    T = _eyes(len(angle))
-    T[:, j, j] = T[:, k, k] = np.cos(angle)
-    T[:, k, j], T[:, j, k] = np.sin(angle), -np.sin(angle)
+    T = np.eye(4) if np.ndim(angle) == 0 else _eyes(len(angle))
+    c, s = np.cos(angle), np.sin(angle)
+    T[..., j, j] = T[..., k, k] = c
+    T[..., k, j], T[..., j, k] = s, -s
     return T
 
 
-def _shift(axis: int, length: Array) -> Array:
-    """(M, 4, 4) translations by ``length`` (M,) m along coordinate axis ``axis``."""
-    T = _eyes(len(length))
-    T[:, axis, 3] = length
+def _shift(axis: int, length: Array | float) -> Array:
+    """(M, 4, 4) translations by ``length`` (M,) m along coordinate axis ``axis``; (4, 4) for a number."""
+    T = np.eye(4) if np.ndim(length) == 0 else _eyes(len(length))
+    T[..., axis, 3] = length
     return T
 
 
@@ -568,12 +596,20 @@ def _axis_notes(robot: ZRPRobot, axis_frames: Sequence[Array]) -> tuple[str, ...
     return tuple(notes)
 
 
-def _mismatch(robot: ZRPRobot, table: DHTable, samples: int, seed: int, notes: tuple[str, ...]) -> DHMismatch:
-    """Largest hand pose difference between ``table`` and ``robot`` at q = 0 and random joint values."""
+def _reference(robot: ZRPRobot, samples: int, seed: int) -> tuple[Array, Array, Array]:
+    """The joint samples of :func:`to_dh`'s mismatch (q = 0, then uniform within the limits) and
+    the arm's hand orientations and positions there: (q, R, p)."""
     limits = robot.joint_limits
     q = np.random.default_rng(seed).uniform(limits[:, 0], limits[:, 1], size=(max(samples, 1), robot.n))
     q[0] = 0.0
     R, p = kinematics.forward(robot, q)
+    return q, R, p
+
+
+def _mismatch(robot: ZRPRobot, table: DHTable, reference: tuple[Array, Array, Array], notes: tuple[str, ...]) -> DHMismatch:
+    """Largest hand pose difference between ``table`` and ``robot`` at the joint samples of
+    ``reference`` (:func:`_reference`)."""
+    q, R, p = reference
     T = table.forward(q)
     # |R1 - R2|_F = 2 sqrt(2) sin(angle / 2): accurate for small angles, unlike arccos of the trace
     chord = np.linalg.norm(R - T[:, :3, :3], axis=(1, 2)) / (2 * np.sqrt(2))

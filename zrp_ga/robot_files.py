@@ -56,7 +56,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from zrp_ga import records, so3
-from zrp_ga.dh import CONVENTIONS, DHMismatch, DHTable, to_dh
+from zrp_ga.dh import CONVENTIONS, DHMismatch, DHTable, tables, to_dh
 from zrp_ga.files import regular_file
 from zrp_ga.robot import DEFAULT_LIMITS, MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
 from zrp_ga.urdf import check_transform, read_urdf, to_urdf
@@ -513,9 +513,9 @@ def write_all(
     paths = {"urdf": out / f"{stem}.urdf", "dh": out / f"{stem}_dh.yaml", "mdh": out / f"{stem}_mdh.yaml",
              "zrp": out / f"{stem}.yaml", "frames": out / f"{stem}_frames.yaml"}
     to_urdf(robot, paths["urdf"], base, tool)
-    mismatches = {}
+    mismatches = tables(robot)  # to_dh(robot, convention) of each
     for convention, title in (("dh", "Standard DH"), ("mdh", "Modified DH")):
-        table, mismatch = mismatches[convention] = to_dh(robot, convention)
+        table, mismatch = mismatches[convention]
         header = f"{title} table of {robot.name} (zrp_ga.robot_files.to_dh): {mismatch}"
         dh_to_yaml(table, paths[convention], comment="\n".join([header, *mismatch.notes]))
         if table.beta.any():
