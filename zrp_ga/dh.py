@@ -137,7 +137,10 @@ class DHTable:
         for i in range(self.n):  # the fixed one of theta and d a number, its link factor one matrix
             theta = self.theta[i] + Q[:, i] if revolute[i] else self.theta[i] + 0.0
             d = self.d[i] + 0.0 if revolute[i] else self.d[i] + Q[:, i]
-            T = T @ _link(self.convention, theta, d, self.a[i], self.alpha[i], self.beta[i])
+            if self.beta[i]:
+                T = T @ _link(self.convention, theta, d, self.a[i], self.alpha[i], self.beta[i])
+            else:
+                T = T @ _plain_link(self.convention, theta, d, self.a[i], self.alpha[i], len(Q))
         T = T @ self.tool
         return T[0] if q.ndim == 1 else T
 
@@ -540,6 +543,23 @@ def _link(convention: str, theta: Array | float, d: Array | float, a: float, alp
 
 _EYE = np.eye(4)
 _EYE.setflags(write=False)
+
+
+def _plain_link(convention: str, theta: Array | float, d: Array | float, a: float, alpha: float, m: int) -> Array:
+    """``_link(convention, theta, d, a, alpha)`` (beta = 0) for m samples, written out: each entry
+    of the product of its factors is a single product of two of their entries (or one entry),
+    rounded once either way, so the link is :func:`_link`'s (up to the signs of its zeros)."""
+    c, s, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
+    L = _eyes(m)
+    if convention == "dh":  # Rz(theta) Tz(d) Tx(a) Rx(alpha)
+        L[:, 0, 0], L[:, 0, 1], L[:, 0, 2], L[:, 0, 3] = c, -(s * ca), s * sa, c * a
+        L[:, 1, 0], L[:, 1, 1], L[:, 1, 2], L[:, 1, 3] = s, c * ca, -(c * sa), s * a
+        L[:, 2, 1], L[:, 2, 2], L[:, 2, 3] = sa, ca, d
+    else:  # Rx(alpha) Tx(a) Rz(theta) Tz(d)
+        L[:, 0, 0], L[:, 0, 1], L[:, 0, 3] = c, -s, a
+        L[:, 1, 0], L[:, 1, 1], L[:, 1, 2], L[:, 1, 3] = ca * s, ca * c, -sa, -(sa * d)
+        L[:, 2, 0], L[:, 2, 1], L[:, 2, 2], L[:, 2, 3] = sa * s, sa * c, ca, ca * d
+    return L
 
 
 def _rot(axis: int, angle: Array | float) -> Array:
