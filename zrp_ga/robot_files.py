@@ -457,12 +457,30 @@ _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.\-]*")
 def _short(x: ArrayLike) -> float | list:
     """x (a number or array) as the floats of shortest decimal form within 8 units in the last place."""
     x = np.asarray(x, dtype=float)
-    near = (x[..., None] + np.spacing(x)[..., None] * _STEPS).reshape(-1, _STEPS.size)[:, _NEAREST_FIRST]
-    # the reprs of every candidate of every number in one pass; the first of the fewest characters
-    # in nearest-first order (ties: the nearer, then the smaller)
-    lengths = np.fromiter(map(len, map(repr, near.ravel().tolist())), dtype=np.intp, count=near.size)
-    best = near[np.arange(len(near)), lengths.reshape(near.shape).argmin(axis=1)]
-    return (best.reshape(x.shape) + 0.0).tolist()
+    flat = x.ravel()
+    best = flat + 0.0
+    search = np.flatnonzero([not _shortest_already(v, text) for v, text in zip(flat.tolist(), map(repr, flat.tolist()))])
+    if search.size:  # the reprs of every candidate of these numbers in one pass; the first of the fewest
+        # characters in nearest-first order (ties: the nearer, then the smaller)
+        near = (flat[search, None] + np.spacing(flat[search])[:, None] * _STEPS)[:, _NEAREST_FIRST]
+        lengths = np.fromiter(map(len, map(repr, near.ravel().tolist())), dtype=np.intp, count=near.size)
+        best[search] = near[np.arange(len(near)), lengths.reshape(near.shape).argmin(axis=1)] + 0.0
+    return best.reshape(x.shape).tolist()
+
+
+def _shortest_already(v: float, text: str) -> bool:
+    """Whether ``v`` (``text``: its repr) is its own shortest candidate in :func:`_short`: 0, or a
+    repr of at most 13 significant digits for 1e-90 < |v| < 1e11. Two floats within 8 units in
+    the last place (1.8e-15 relative) that both had decimals of 13 digits or fewer would be
+    at least 1e-14 apart (relative), so every other candidate needs 14 digits or more, hence
+    as many characters or more (same sign, and at these magnitudes no fewer for the
+    exponent, the leading zeros or the integer digits); ties go to v, the nearest."""
+    if v == 0.0:
+        return True
+    if not 1e-90 < abs(v) < 1e11:
+        return False
+    digits = text.split("e")[0].replace("-", "").replace(".", "").strip("0")
+    return len(digits) <= 13
 
 
 _STEPS = np.arange(-8, 9)  # the candidates of _short: within 8 units in the last place
