@@ -474,7 +474,7 @@ def _frame(origin: Array, x: Array, z: Array, keep: str = "z") -> Array:
         z = z - np.dot(z, x) * x
         z = z / _norm(z)
     x = x / _norm(x)
-    T = np.eye(4)
+    T = _EYE.copy()
     T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, _cross(z, x), z, origin
     return T
 
@@ -566,7 +566,7 @@ def _rot(axis: int, angle: Array | float) -> Array:
     """(M, 4, 4) rotations by ``angle`` (M,) rad about coordinate axis 0 (x), 1 (y) or 2 (z);
     (4, 4) for a number."""
     j, k = [(1, 2), (2, 0), (0, 1)][axis]
-    T = np.eye(4) if np.ndim(angle) == 0 else _eyes(len(angle))
+    T = _EYE.copy() if np.ndim(angle) == 0 else _eyes(len(angle))
     c, s = np.cos(angle), np.sin(angle)
     T[..., j, j] = T[..., k, k] = c
     T[..., k, j], T[..., j, k] = s, -s
@@ -575,7 +575,7 @@ def _rot(axis: int, angle: Array | float) -> Array:
 
 def _shift(axis: int, length: Array | float) -> Array:
     """(M, 4, 4) translations by ``length`` (M,) m along coordinate axis ``axis``; (4, 4) for a number."""
-    T = np.eye(4) if np.ndim(length) == 0 else _eyes(len(length))
+    T = _EYE.copy() if np.ndim(length) == 0 else _eyes(len(length))
     T[..., axis, 3] = length
     return T
 

@@ -330,9 +330,15 @@ def dh_to_yaml(
         lines.append(f"# Rows with beta are Hayati rows (nearly parallel axes): A = {link[table.convention]}")
     head = {"name": table.name, "convention": table.convention, "units": {"length": length, "angle": angle}}
     lines += [_yaml_text(head).rstrip(), "joints:"]
-    a, alpha, d, theta, beta = _short([table.a / L, table.alpha / A, table.d / L, table.theta / A, table.beta / A])
+    n = table.n
+    columns = [table.a / L, table.alpha / A, table.d / L, table.theta / A, table.beta / A]
     if table.limits is not None:
-        limits = _short(np.asarray(table.limits) / np.array([[A if kind == "R" else L] for kind in table.joint_types]))
+        columns += list((np.asarray(table.limits) / np.array([[A if kind == "R" else L] for kind in table.joint_types])).T)
+    poses = [(T[:3, 3] / L, so3.rpy(T[:3, :3]) / A) for T in (table.base, table.tool)]
+    numbers = _short(np.concatenate(columns + [v for pose in poses for v in pose]))  # all at once
+    a, alpha, d, theta, beta = (numbers[k * n:(k + 1) * n] for k in range(5))
+    if table.limits is not None:
+        limits = list(zip(numbers[5 * n:6 * n], numbers[6 * n:7 * n]))
     for i, kind in enumerate(table.joint_types):
         row = [_flow_text("name", names[i]), _flow_text("type", kind)]
         row += [f"{k}: {_yaml_float(v)}" for k, v in (("a", a[i]), ("alpha", alpha[i]), ("d", d[i]), ("theta", theta[i]))]
@@ -341,9 +347,9 @@ def dh_to_yaml(
         if table.limits is not None:
             row.append(f"limits: [{', '.join(map(_yaml_float, limits[i]))}]")
         lines.append("  - {" + ", ".join(row) + "}" + ("  # Hayati row" if table.beta[i] else ""))
-    poses = {key: {"xyz": _short(T[:3, 3] / L), "rpy": _short(so3.rpy(T[:3, :3]) / A)}
-             for key, T in (("base", table.base), ("tool", table.tool))}  # fmt: skip
-    lines.append(_yaml_text(poses).rstrip())
+    rest = numbers[len(numbers) - 12:]
+    pose_text = {key: {"xyz": rest[6 * k:6 * k + 3], "rpy": rest[6 * k + 3:6 * k + 6]} for k, key in enumerate(("base", "tool"))}
+    lines.append(_yaml_text(pose_text).rstrip())
     text = "\n".join(lines) + "\n"
     if path is not None:
         Path(path).write_text(text)
@@ -542,7 +548,7 @@ def write_all(
                         paths[convention].name, rows)
     paths["zrp"].write_text(_yaml_text(robot.to_dict()))  # robot.to_yaml(path), the same text
     poses = {"base": base, "tool": tool}
-    frames = {k: _frame_entry(np.eye(4) if T is None else check_transform(T, k)) for k, T in poses.items()}
+    frames = {k: _identity_entry() if T is None else _frame_entry(check_transform(T, k)) for k, T in poses.items()}
     comment = (
         "# base: pose of the robot's world frame (URDF link base_link) in the outer frame (link world);\n"
         "# tool: pose of the tool frame (link tool) in the hand frame (link hand). Lengths m;\n"
@@ -550,6 +556,12 @@ def write_all(
     )
     paths["frames"].write_text(comment + _yaml_text(frames))
     return paths, {k: m for k, (_, m) in mismatches.items()}
+
+
+@functools.cache
+def _identity_entry() -> dict:
+    """``_frame_entry(np.eye(4))``, computed once (only written: not to be changed)."""
+    return _frame_entry(np.eye(4))
 
 
 def _frame_entry(T: Array) -> dict:
