@@ -465,13 +465,25 @@ def _short(x: ArrayLike) -> float | list:
     x = np.asarray(x, dtype=float)
     flat = x.ravel()
     best = flat + 0.0
-    search = np.flatnonzero([not _shortest_already(v, text) for v, text in zip(flat.tolist(), map(repr, flat.tolist()))])
-    if search.size:  # the reprs of every candidate of these numbers in one pass; the first of the fewest
+    values = flat.tolist()
+    search = []
+    for i, (v, text) in enumerate(zip(values, map(repr, values))):
+        if v in _SHORTENED:  # searched lately: a run writes two tables, of many of the same numbers
+            best[i] = _SHORTENED[v]
+        elif not _shortest_already(v, text):
+            search.append(i)
+    if search:  # the reprs of every candidate of these numbers in one pass; the first of the fewest
         # characters in nearest-first order (ties: the nearer, then the smaller)
         near = (flat[search, None] + np.spacing(flat[search])[:, None] * _STEPS)[:, _NEAREST_FIRST]
         lengths = np.fromiter(map(len, map(repr, near.ravel().tolist())), dtype=np.intp, count=near.size)
         best[search] = near[np.arange(len(near)), lengths.reshape(near.shape).argmin(axis=1)] + 0.0
+        if len(_SHORTENED) > 4096:
+            _SHORTENED.clear()
+        _SHORTENED.update(zip(flat[search].tolist(), best[search].tolist()))
     return best.reshape(x.shape).tolist()
+
+
+_SHORTENED: dict[float, float] = {}  # number -> _short(number), for the numbers searched lately
 
 
 def _shortest_already(v: float, text: str) -> bool:
