@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 
@@ -619,11 +620,20 @@ def _axis_notes(robot: ZRPRobot, axis_frames: Sequence[Array]) -> tuple[str, ...
 def _reference(robot: ZRPRobot, samples: int, seed: int) -> tuple[Array, Array, Array]:
     """The joint samples of :func:`to_dh`'s mismatch (q = 0, then uniform within the limits) and
     the arm's hand orientations and positions there: (q, R, p)."""
-    limits = robot.joint_limits
-    q = np.random.default_rng(seed).uniform(limits[:, 0], limits[:, 1], size=(max(samples, 1), robot.n))
-    q[0] = 0.0
+    q = _samples(robot.joint_limits.tobytes(), robot.n, samples, seed)
     R, p = kinematics.forward(robot, q)
     return q, R, p
+
+
+@functools.lru_cache(maxsize=64)
+def _samples(limits: bytes, n: int, samples: int, seed: int) -> Array:
+    """The joint samples of :func:`_reference` for the joint limits ``limits`` (the bytes of an
+    (n, 2) float array), read-only: the runs of a sweep share their arm's limits."""
+    limits = np.frombuffer(limits, dtype=float).reshape(n, 2)
+    q = np.random.default_rng(seed).uniform(limits[:, 0], limits[:, 1], size=(max(samples, 1), n))
+    q[0] = 0.0
+    q.setflags(write=False)
+    return q
 
 
 def _mismatch(robot: ZRPRobot, table: DHTable, reference: tuple[Array, Array, Array], notes: tuple[str, ...]) -> DHMismatch:
