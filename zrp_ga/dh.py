@@ -566,18 +566,30 @@ def _plain_link(convention: str, theta: Array | float, d: Array | float, a: floa
 def _rot(axis: int, angle: Array | float) -> Array:
     """(M, 4, 4) rotations by ``angle`` (M,) rad about coordinate axis 0 (x), 1 (y) or 2 (z);
     (4, 4) for a number."""
-    j, k = [(1, 2), (2, 0), (0, 1)][axis]
-    T = _EYE.copy() if np.ndim(angle) == 0 else _eyes(len(angle))
+    j, k = _PLANES[axis]
     c, s = np.cos(angle), np.sin(angle)
-    T[..., j, j] = T[..., k, k] = c
-    T[..., k, j], T[..., j, k] = s, -s
+    if np.ndim(angle) == 0:
+        T = _EYE.copy()
+        T[j, j] = T[k, k] = c
+        T[k, j], T[j, k] = s, -s
+        return T
+    T = _eyes(len(angle))
+    T[:, j, j] = T[:, k, k] = c
+    T[:, k, j], T[:, j, k] = s, -s
     return T
+
+
+_PLANES = ((1, 2), (2, 0), (0, 1))  # the plane each coordinate axis turns
 
 
 def _shift(axis: int, length: Array | float) -> Array:
     """(M, 4, 4) translations by ``length`` (M,) m along coordinate axis ``axis``; (4, 4) for a number."""
-    T = _EYE.copy() if np.ndim(length) == 0 else _eyes(len(length))
-    T[..., axis, 3] = length
+    if np.ndim(length) == 0:
+        T = _EYE.copy()
+        T[axis, 3] = length
+        return T
+    T = _eyes(len(length))
+    T[:, axis, 3] = length
     return T
 
 
