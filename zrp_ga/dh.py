@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 
@@ -134,10 +135,13 @@ class DHTable:
         Q = np.atleast_2d(q)
         revolute = np.array([t == "R" for t in self.joint_types])
         T = np.broadcast_to(self.base, (len(Q), 4, 4))
-        for i in range(self.n):
-            theta = self.theta[i] + np.where(revolute[i], Q[:, i], 0.0)
-            d = self.d[i] + np.where(revolute[i], 0.0, Q[:, i])
-            T = T @ _link(self.convention, theta, d, self.a[i], self.alpha[i], self.beta[i])
+        for i in range(self.n):  # the fixed one of theta and d a number, its link factor one matrix
+            theta = self.theta[i] + Q[:, i] if revolute[i] else self.theta[i] + 0.0
+            d = self.d[i] + 0.0 if revolute[i] else self.d[i] + Q[:, i]
+            if self.beta[i]:
+                T = T @ _link(self.convention, theta, d, self.a[i], self.alpha[i], self.beta[i])
+            else:
+                T = T @ _plain_link(self.convention, theta, d, self.a[i], self.alpha[i], len(Q))
         T = T @ self.tool
         return T[0] if q.ndim == 1 else T
 
@@ -183,6 +187,26 @@ def to_dh(
     >>> np.round(np.degrees(table.alpha)).tolist(), mismatch.position_m < 1e-15
     ([90.0, 0.0, -90.0, 90.0, -90.0, 0.0], True)
     """
+    return _to_dh(robot, convention, parallel_tol, samples, seed, max_offset, base_x)
+
+
+def tables(robot: ZRPRobot, samples: int = 200, seed: int = 0) -> dict[str, tuple[DHTable, DHMismatch]]:
+    """``{convention: to_dh(robot, convention, samples=samples, seed=seed)}`` for both
+    conventions, the arm's own hand poses at the joint samples computed once for both.
+
+    >>> from zrp_ga import robots
+    >>> sorted(tables(robots.get("puma560"), samples=5))
+    ['dh', 'mdh']
+    """
+    reference = _reference(robot, samples, seed)
+    return {c: _to_dh(robot, c, PARALLEL_TOL, samples, seed, None, None, reference) for c in CONVENTIONS}
+
+
+def _to_dh(
+    robot: ZRPRobot, convention: str, parallel_tol: float, samples: int, seed: int, max_offset: float | None,
+    base_x: ArrayLike | None, reference: tuple[Array, Array, Array] | None = None,
+) -> tuple[DHTable, DHMismatch]:
+    """:func:`to_dh`; ``reference``: ``_reference(robot, samples, seed)`` if already computed."""
     if convention not in CONVENTIONS:
         raise ValueError(f"convention: {convention!r}, expected one of {', '.join(CONVENTIONS)}")
     points = np.cumsum(robot.b0, axis=0)  # points[i]: on axis i+1; points[n]: the end point
@@ -196,7 +220,7 @@ def to_dh(
     last = table.forward(np.zeros(robot.n))  # frame n of the tidied table
     table = _with_tool(table, _tidy(np.linalg.inv(last) @ hand))
     notes = _hayati_notes(robot, table, far) + _axis_notes(robot, axis_frames[:-1])
-    return table, _mismatch(robot, table, samples, seed, notes)
+    return table, _mismatch(robot, table, _reference(robot, samples, seed) if reference is None else reference, notes)
 
 
 def _table(convention: str, a: Array, alpha: Array, d: Array, theta: Array, robot: ZRPRobot, base: Array,
@@ -451,7 +475,7 @@ def _frame(origin: Array, x: Array, z: Array, keep: str = "z") -> Array:
         z = z - np.dot(z, x) * x
         z = z / _norm(z)
     x = x / _norm(x)
-    T = np.eye(4)
+    T = _EYE.copy()
     T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, _cross(z, x), z, origin
     return T
 
@@ -504,29 +528,66 @@ def _mdh_row(rel: Array) -> tuple[float, float, float, float]:
 def _row_link(convention: str, row: tuple[float, ...]) -> Array:
     """(4, 4) transform of one row (a, alpha, d, theta[, beta]) at q = 0."""
     a, alpha, d, theta, *beta = row
-    return _link(convention, np.array([theta]), np.array([d]), a, alpha, beta[0] if beta else 0.0)[0]
+    return _link(convention, theta, d, a, alpha, beta[0] if beta else 0.0)
 
 
-def _link(convention: str, theta: Array, d: Array, a: float, alpha: float, beta: float = 0.0) -> Array:
-    """(M, 4, 4) link transforms for M values of theta and d (arrays of shape (M,))."""
-    const = lambda v: np.full(d.shape, v, dtype=d.dtype)
-    tilt = _rot(1, const(beta)) if beta else np.eye(4)
+def _link(convention: str, theta: Array | float, d: Array | float, a: float, alpha: float, beta: float = 0.0) -> Array:
+    """(M, 4, 4) link transforms for M values of theta and d (arrays of shape (M,)); (4, 4) for
+    numbers. Each factor that is the same for all M is one (4, 4) matrix: numpy's matmul takes
+    the same products in the same order for a broadcast factor, so the links are the same to
+    the last bit as with M copies of it."""
+    tilt = _rot(1, beta) if beta else _EYE
     if convention == "dh":
-        return _rot(2, theta) @ _shift(2, d) @ _shift(0, const(a)) @ _rot(0, const(alpha)) @ tilt
-    return _rot(0, const(alpha)) @ _shift(0, const(a)) @ tilt @ _rot(2, theta) @ _shift(2, d)
+        return _rot(2, theta) @ _shift(2, d) @ _shift(0, a) @ _rot(0, alpha) @ tilt
+    return _rot(0, alpha) @ _shift(0, a) @ tilt @ _rot(2, theta) @ _shift(2, d)
 
 
-def _rot(axis: int, angle: Array) -> Array:
-    """(M, 4, 4) rotations by ``angle`` (M,) rad about coordinate axis 0 (x), 1 (y) or 2 (z)."""
-    j, k = [(1, 2), (2, 0), (0, 1)][axis]
+_EYE = np.eye(4)
+_EYE.setflags(write=False)
+
+
+def _plain_link(convention: str, theta: Array | float, d: Array | float, a: float, alpha: float, m: int) -> Array:
+    """``_link(convention, theta, d, a, alpha)`` (beta = 0) for m samples, written out: each entry
+    of the product of its factors is a single product of two of their entries (or one entry),
+    rounded once either way, so the link is :func:`_link`'s (up to the signs of its zeros)."""
+    c, s, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
+    L = _eyes(m)
+    if convention == "dh":  # Rz(theta) Tz(d) Tx(a) Rx(alpha)
+        L[:, 0, 0], L[:, 0, 1], L[:, 0, 2], L[:, 0, 3] = c, -(s * ca), s * sa, c * a
+        L[:, 1, 0], L[:, 1, 1], L[:, 1, 2], L[:, 1, 3] = s, c * ca, -(c * sa), s * a
+        L[:, 2, 1], L[:, 2, 2], L[:, 2, 3] = sa, ca, d
+    else:  # Rx(alpha) Tx(a) Rz(theta) Tz(d)
+        L[:, 0, 0], L[:, 0, 1], L[:, 0, 3] = c, -s, a
+        L[:, 1, 0], L[:, 1, 1], L[:, 1, 2], L[:, 1, 3] = ca * s, ca * c, -sa, -(sa * d)
+        L[:, 2, 0], L[:, 2, 1], L[:, 2, 2], L[:, 2, 3] = sa * s, sa * c, ca, ca * d
+    return L
+
+
+def _rot(axis: int, angle: Array | float) -> Array:
+    """(M, 4, 4) rotations by ``angle`` (M,) rad about coordinate axis 0 (x), 1 (y) or 2 (z);
+    (4, 4) for a number."""
+    j, k = _PLANES[axis]
+    c, s = np.cos(angle), np.sin(angle)
+    if np.ndim(angle) == 0:
+        T = _EYE.copy()
+        T[j, j] = T[k, k] = c
+        T[k, j], T[j, k] = s, -s
+        return T
     T = _eyes(len(angle))
-    T[:, j, j] = T[:, k, k] = np.cos(angle)
-    T[:, k, j], T[:, j, k] = np.sin(angle), -np.sin(angle)
+    T[:, j, j] = T[:, k, k] = c
+    T[:, k, j], T[:, j, k] = s, -s
     return T
 
 
-def _shift(axis: int, length: Array) -> Array:
-    """(M, 4, 4) translations by ``length`` (M,) m along coordinate axis ``axis``."""
+_PLANES = ((1, 2), (2, 0), (0, 1))  # the plane each coordinate axis turns
+
+
+def _shift(axis: int, length: Array | float) -> Array:
+    """(M, 4, 4) translations by ``length`` (M,) m along coordinate axis ``axis``; (4, 4) for a number."""
+    if np.ndim(length) == 0:
+        T = _EYE.copy()
+        T[axis, 3] = length
+        return T
     T = _eyes(len(length))
     T[:, axis, 3] = length
     return T
@@ -568,12 +629,29 @@ def _axis_notes(robot: ZRPRobot, axis_frames: Sequence[Array]) -> tuple[str, ...
     return tuple(notes)
 
 
-def _mismatch(robot: ZRPRobot, table: DHTable, samples: int, seed: int, notes: tuple[str, ...]) -> DHMismatch:
-    """Largest hand pose difference between ``table`` and ``robot`` at q = 0 and random joint values."""
-    limits = robot.joint_limits
-    q = np.random.default_rng(seed).uniform(limits[:, 0], limits[:, 1], size=(max(samples, 1), robot.n))
-    q[0] = 0.0
+def _reference(robot: ZRPRobot, samples: int, seed: int) -> tuple[Array, Array, Array]:
+    """The joint samples of :func:`to_dh`'s mismatch (q = 0, then uniform within the limits) and
+    the arm's hand orientations and positions there: (q, R, p)."""
+    q = _samples(robot.joint_limits.tobytes(), robot.n, samples, seed)
     R, p = kinematics.forward(robot, q)
+    return q, R, p
+
+
+@functools.lru_cache(maxsize=64)
+def _samples(limits: bytes, n: int, samples: int, seed: int) -> Array:
+    """The joint samples of :func:`_reference` for the joint limits ``limits`` (the bytes of an
+    (n, 2) float array), read-only: the runs of a sweep share their arm's limits."""
+    limits = np.frombuffer(limits, dtype=float).reshape(n, 2)
+    q = np.random.default_rng(seed).uniform(limits[:, 0], limits[:, 1], size=(max(samples, 1), n))
+    q[0] = 0.0
+    q.setflags(write=False)
+    return q
+
+
+def _mismatch(robot: ZRPRobot, table: DHTable, reference: tuple[Array, Array, Array], notes: tuple[str, ...]) -> DHMismatch:
+    """Largest hand pose difference between ``table`` and ``robot`` at the joint samples of
+    ``reference`` (:func:`_reference`)."""
+    q, R, p = reference
     T = table.forward(q)
     # |R1 - R2|_F = 2 sqrt(2) sin(angle / 2): accurate for small angles, unlike arccos of the trace
     chord = np.linalg.norm(R - T[:, :3, :3], axis=(1, 2)) / (2 * np.sqrt(2))

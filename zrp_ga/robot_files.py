@@ -46,6 +46,7 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import re
 from pathlib import Path
 from typing import NamedTuple
 
@@ -55,7 +56,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from zrp_ga import records, so3
-from zrp_ga.dh import CONVENTIONS, DHMismatch, DHTable, to_dh
+from zrp_ga.dh import CONVENTIONS, DHMismatch, DHTable, tables, to_dh
 from zrp_ga.files import regular_file
 from zrp_ga.robot import DEFAULT_LIMITS, MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
 from zrp_ga.urdf import check_transform, read_urdf, to_urdf
@@ -328,10 +329,16 @@ def dh_to_yaml(
         link = {"dh": "Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)", "mdh": "Rx(alpha) Tx(a) Ry(beta) Rz(theta) Tz(d)"}
         lines.append(f"# Rows with beta are Hayati rows (nearly parallel axes): A = {link[table.convention]}")
     head = {"name": table.name, "convention": table.convention, "units": {"length": length, "angle": angle}}
-    lines += [records.yaml_text(head, sort_keys=False, default_flow_style=None).rstrip(), "joints:"]
-    a, alpha, d, theta, beta = _short([table.a / L, table.alpha / A, table.d / L, table.theta / A, table.beta / A])
+    lines += [_yaml_text(head).rstrip(), "joints:"]
+    n = table.n
+    columns = [table.a / L, table.alpha / A, table.d / L, table.theta / A, table.beta / A]
     if table.limits is not None:
-        limits = _short(np.asarray(table.limits) / np.array([[A if kind == "R" else L] for kind in table.joint_types]))
+        columns += list((np.asarray(table.limits) / np.array([[A if kind == "R" else L] for kind in table.joint_types])).T)
+    poses = [(T[:3, 3] / L, so3.rpy(T[:3, :3]) / A) for T in (table.base, table.tool)]
+    numbers = _short(np.concatenate(columns + [v for pose in poses for v in pose]))  # all at once
+    a, alpha, d, theta, beta = (numbers[k * n:(k + 1) * n] for k in range(5))
+    if table.limits is not None:
+        limits = list(zip(numbers[5 * n:6 * n], numbers[6 * n:7 * n]))
     for i, kind in enumerate(table.joint_types):
         row = [_flow_text("name", names[i]), _flow_text("type", kind)]
         row += [f"{k}: {_yaml_float(v)}" for k, v in (("a", a[i]), ("alpha", alpha[i]), ("d", d[i]), ("theta", theta[i]))]
@@ -340,9 +347,9 @@ def dh_to_yaml(
         if table.limits is not None:
             row.append(f"limits: [{', '.join(map(_yaml_float, limits[i]))}]")
         lines.append("  - {" + ", ".join(row) + "}" + ("  # Hayati row" if table.beta[i] else ""))
-    poses = {key: {"xyz": _short(T[:3, 3] / L), "rpy": _short(so3.rpy(T[:3, :3]) / A)}
-             for key, T in (("base", table.base), ("tool", table.tool))}  # fmt: skip
-    lines.append(records.yaml_text(poses, sort_keys=False, default_flow_style=None).rstrip())
+    rest = numbers[len(numbers) - 12:]
+    pose_text = {key: {"xyz": rest[6 * k:6 * k + 3], "rpy": rest[6 * k + 3:6 * k + 6]} for k, key in enumerate(("base", "tool"))}
+    lines.append(_yaml_text(pose_text).rstrip())
     text = "\n".join(lines) + "\n"
     if path is not None:
         Path(path).write_text(text)
@@ -367,22 +374,135 @@ def _yaml_float(x: float) -> str:
     return text.replace("e", ".0e", 1) if "." not in text and "e" in text else text
 
 
+# The YAML documents of the robot files (nested mappings of names, floats and lists of them) are
+# written as ``records.yaml_text(data, sort_keys=False, default_flow_style=None)`` writes them,
+# without PyYAML's representer (most of the time of a run's robot files): collections holding
+# no collection in flow style, the rest in block style, flow collections wrapped as PyYAML wraps
+# them (a new line, indented, before an item when the line is past 80 characters). Anything else
+# (a name YAML would quote, a number that is not a float, an empty collection) goes to PyYAML.
+_WIDTH, _INDENT = 80, 2  # PyYAML's best_width and best_indent
+
+
+class _NotPlain(Exception):
+    """A document :func:`_yaml_text` leaves to PyYAML."""
+
+
+def _yaml_text(data: dict) -> str:
+    """``records.yaml_text(data, sort_keys=False, default_flow_style=None)``, the same text."""
+    lines: list[str] = []
+    try:
+        if not isinstance(data, dict) or not any(isinstance(v, (dict, list)) for v in data.values()):
+            raise _NotPlain  # a mapping of scalars alone: PyYAML's flow mapping
+        _block_mapping(data, 0, lines)
+    except _NotPlain:
+        return records.yaml_text(data, sort_keys=False, default_flow_style=None)
+    return "\n".join(lines) + "\n"
+
+
+def _block_mapping(data: dict, indent: int, lines: list[str]) -> None:
+    if not isinstance(data, dict) or not data:
+        raise _NotPlain
+    for key, value in data.items():
+        head = " " * indent + _plain(key) + ":"
+        if isinstance(value, (dict, list)) and not value:
+            raise _NotPlain
+        if isinstance(value, dict) and any(isinstance(v, (dict, list)) for v in value.values()):
+            lines.append(head)
+            _block_mapping(value, indent + _INDENT, lines)
+        elif isinstance(value, list) and any(isinstance(v, (dict, list)) for v in value):
+            lines.append(head)  # a block sequence in a mapping: its dashes under the key
+            for item in value:
+                if not isinstance(item, list) or not item:
+                    raise _NotPlain
+                lines += _flow(" " * indent + "-", item, indent + _INDENT)
+        elif isinstance(value, (dict, list)):
+            lines += _flow(head, value, indent + _INDENT)
+        else:
+            lines.append(head + " " + _scalar(value))
+
+
+def _flow(head: str, items: list | dict, indent: int) -> list[str]:
+    """The lines of a flow sequence or mapping of scalars after ``head``, wrapped as PyYAML does."""
+    is_map = isinstance(items, dict)
+    texts = [f"{_plain(k)}: {_scalar(v)}" for k, v in items.items()] if is_map else [_scalar(v) for v in items]
+    lines, line = [], head + (" {" if is_map else " [")
+    for k, text in enumerate(texts):
+        if k:
+            line += ","
+        if len(line) > _WIDTH:
+            lines.append(line)
+            line = " " * indent + text
+        else:
+            line += (" " if k else "") + text
+    lines.append(line + ("}" if is_map else "]"))
+    return lines
+
+
+def _scalar(value: object) -> str:
+    if type(value) is float:
+        return _yaml_float(value)
+    if type(value) is str:
+        return _plain(value)
+    raise _NotPlain
+
+
+@functools.lru_cache(maxsize=4096)
+def _plain(text: str) -> str:
+    """``text`` when PyYAML writes it plain (a name of letters, digits, ``_ . -`` read back as a
+    string); otherwise the document goes to PyYAML."""
+    if type(text) is not str or not _NAME.fullmatch(text):
+        raise _NotPlain
+    if yaml.resolver.Resolver().resolve(yaml.ScalarNode, text, (True, False)) != "tag:yaml.org,2002:str":
+        raise _NotPlain
+    return text
+
+
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.\-]*")
+
+
 def _short(x: ArrayLike) -> float | list:
     """x (a number or array) as the floats of shortest decimal form within 8 units in the last place."""
     x = np.asarray(x, dtype=float)
-    near = x[..., None] + np.spacing(x)[..., None] * _STEPS
-    best = [_fewest_characters(row) for row in near.reshape(-1, _STEPS.size).tolist()]
-    return (np.array(best).reshape(x.shape) + 0.0).tolist()
+    flat = x.ravel()
+    best = flat + 0.0
+    values = flat.tolist()
+    search = []
+    for i, (v, text) in enumerate(zip(values, map(repr, values))):
+        if v in _SHORTENED:  # searched lately: a run writes two tables, of many of the same numbers
+            best[i] = _SHORTENED[v]
+        elif not _shortest_already(v, text):
+            search.append(i)
+    if search:  # the reprs of every candidate of these numbers in one pass; the first of the fewest
+        # characters in nearest-first order (ties: the nearer, then the smaller)
+        near = (flat[search, None] + np.spacing(flat[search])[:, None] * _STEPS)[:, _NEAREST_FIRST]
+        lengths = np.fromiter(map(len, map(repr, near.ravel().tolist())), dtype=np.intp, count=near.size)
+        best[search] = near[np.arange(len(near)), lengths.reshape(near.shape).argmin(axis=1)] + 0.0
+        if len(_SHORTENED) > 4096:
+            _SHORTENED.clear()
+        _SHORTENED.update(zip(flat[search].tolist(), best[search].tolist()))
+    return best.reshape(x.shape).tolist()
+
+
+_SHORTENED: dict[float, float] = {}  # number -> _short(number), for the numbers searched lately
+
+
+def _shortest_already(v: float, text: str) -> bool:
+    """Whether ``v`` (``text``: its repr) is its own shortest candidate in :func:`_short`: 0, or a
+    repr of at most 13 significant digits for 1e-90 < |v| < 1e11. Two floats within 8 units in
+    the last place (1.8e-15 relative) that both had decimals of 13 digits or fewer would be
+    at least 1e-14 apart (relative), so every other candidate needs 14 digits or more, hence
+    as many characters or more (same sign, and at these magnitudes no fewer for the
+    exponent, the leading zeros or the integer digits); ties go to v, the nearest."""
+    if v == 0.0:
+        return True
+    if not 1e-90 < abs(v) < 1e11:
+        return False
+    digits = text.split("e")[0].replace("-", "").replace(".", "").strip("0")
+    return len(digits) <= 13
 
 
 _STEPS = np.arange(-8, 9)  # the candidates of _short: within 8 units in the last place
 _NEAREST_FIRST = sorted(range(_STEPS.size), key=lambda j: (abs(_STEPS[j]), j))  # ties: the nearer, then the smaller
-
-
-def _fewest_characters(candidates: list[float]) -> float:
-    lengths = list(map(len, map(repr, candidates)))
-    fewest = min(lengths)
-    return next(candidates[j] for j in _NEAREST_FIRST if lengths[j] == fewest)
 
 
 # --- ZRP YAML ----------------------------------------------------------------------------------
@@ -429,25 +549,31 @@ def write_all(
     paths = {"urdf": out / f"{stem}.urdf", "dh": out / f"{stem}_dh.yaml", "mdh": out / f"{stem}_mdh.yaml",
              "zrp": out / f"{stem}.yaml", "frames": out / f"{stem}_frames.yaml"}
     to_urdf(robot, paths["urdf"], base, tool)
-    mismatches = {}
+    mismatches = tables(robot)  # to_dh(robot, convention) of each
     for convention, title in (("dh", "Standard DH"), ("mdh", "Modified DH")):
-        table, mismatch = mismatches[convention] = to_dh(robot, convention)
+        table, mismatch = mismatches[convention]
         header = f"{title} table of {robot.name} (zrp_ga.robot_files.to_dh): {mismatch}"
         dh_to_yaml(table, paths[convention], comment="\n".join([header, *mismatch.notes]))
         if table.beta.any():
             rows = ", ".join(str(i + 1) for i in np.flatnonzero(table.beta))
             log.info("%s: row(s) %s use Hayati's parameterisation (nearly parallel axes; the file's notes say why)",
                         paths[convention].name, rows)
-    robot.to_yaml(paths["zrp"])
+    paths["zrp"].write_text(_yaml_text(robot.to_dict()))  # robot.to_yaml(path), the same text
     poses = {"base": base, "tool": tool}
-    frames = {k: _frame_entry(np.eye(4) if T is None else check_transform(T, k)) for k, T in poses.items()}
+    frames = {k: _identity_entry() if T is None else _frame_entry(check_transform(T, k)) for k, T in poses.items()}
     comment = (
         "# base: pose of the robot's world frame (URDF link base_link) in the outer frame (link world);\n"
         "# tool: pose of the tool frame (link tool) in the hand frame (link hand). Lengths m;\n"
         "# quaternion_xyzw: x, y, z, w (scalar last, as scipy and ROS).\n"
     )
-    paths["frames"].write_text(comment + records.yaml_text(frames, sort_keys=False, default_flow_style=None))
+    paths["frames"].write_text(comment + _yaml_text(frames))
     return paths, {k: m for k, (_, m) in mismatches.items()}
+
+
+@functools.cache
+def _identity_entry() -> dict:
+    """``_frame_entry(np.eye(4))``, computed once (only written: not to be changed)."""
+    return _frame_entry(np.eye(4))
 
 
 def _frame_entry(T: Array) -> dict:

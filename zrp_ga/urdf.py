@@ -41,6 +41,7 @@ Errors are ValueErrors of one line naming the file and the line or the joint.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -492,40 +493,48 @@ def _pose(R: Array, p: Array) -> Array:
 
 # --- a new URDF ----------------------------------------------------------------------------------
 def _new_urdf(robot: ZRPRobot, base: Array | None, tool: Array | None) -> str:
-    """The exact mapping with world-aligned link frames (module docstring)."""
+    """The exact mapping with world-aligned link frames (module docstring), as ElementTree writes
+    it indented (``ET.indent``, ``ET.tostring``), written out as text: a run of a sweep writes
+    one at its end."""
     names = robot.joint_names or tuple(f"joint_{i + 1}" for i in range(robot.n))
     clash = sorted(set(names) & set(_FIXED_JOINTS))
     if clash:
         raise ValueError(f"joint names {', '.join(clash)}: reserved for the URDF's fixed joints")
-    root = ET.Element("robot", name=robot.name)
+    lines = ['<?xml version="1.0"?>', f"<robot name={_attr(robot.name)}>"]
     if base is not None:
-        ET.SubElement(root, "link", name="world")
-        _urdf_joint(root, "base_joint", "fixed", "world", "base_link", base)
-    ET.SubElement(root, "link", name="base_link")
+        lines.append('  <link name="world" />')
+        lines += _urdf_joint("base_joint", "fixed", "world", "base_link", base)
+    lines.append('  <link name="base_link" />')
     parent = "base_link"
     for i in range(robot.n):
-        ET.SubElement(root, "link", name=f"link_{i + 1}")
+        lines.append(f'  <link name="link_{i + 1}" />')
         kind = "revolute" if robot.joint_types[i] == "R" else "prismatic"
-        joint = _urdf_joint(root, names[i], kind, parent, f"link_{i + 1}", _pose(np.eye(3), robot.b0[i]))
-        ET.SubElement(joint, "axis", xyz=_numbers(robot.u0[i]))
+        joint = _urdf_joint(names[i], kind, parent, f"link_{i + 1}", _pose(np.eye(3), robot.b0[i]))
         lower, upper = robot.joint_limits[i]
-        ET.SubElement(joint, "limit", lower=repr(float(lower)), upper=repr(float(upper)), effort="0", velocity="0")
+        joint[-1:-1] = [f'    <axis xyz="{_numbers(robot.u0[i])}" />',
+                        f'    <limit lower="{float(lower)!r}" upper="{float(upper)!r}" effort="0" velocity="0" />']
+        lines += joint
         parent = f"link_{i + 1}"
-    ET.SubElement(root, "link", name="hand")
-    _urdf_joint(root, "hand_joint", "fixed", parent, "hand", _pose(robot.R_h0, robot.b0[-1]))
+    lines.append('  <link name="hand" />')
+    lines += _urdf_joint("hand_joint", "fixed", parent, "hand", _pose(robot.R_h0, robot.b0[-1]))
     if tool is not None:
-        ET.SubElement(root, "link", name="tool")
-        _urdf_joint(root, "tool_joint", "fixed", "hand", "tool", tool)
-    ET.indent(root)
-    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+        lines.append('  <link name="tool" />')
+        lines += _urdf_joint("tool_joint", "fixed", "hand", "tool", tool)
+    lines.append("</robot>")
+    return "\n".join(lines) + "\n"
 
 
-def _urdf_joint(root: ET.Element, name: str, kind: str, parent: str, child: str, T: Array) -> ET.Element:
-    joint = ET.SubElement(root, "joint", name=name, type=kind)
-    ET.SubElement(joint, "parent", link=parent)
-    ET.SubElement(joint, "child", link=child)
-    ET.SubElement(joint, "origin", xyz=_numbers(T[:3, 3]), rpy=_numbers(so3.rpy(T[:3, :3])))
-    return joint
+def _urdf_joint(name: str, kind: str, parent: str, child: str, T: Array) -> list[str]:
+    """The lines of a joint element (origin last before the closing tag)."""
+    return [f"  <joint name={_attr(name)} type={_attr(kind)}>", f"    <parent link={_attr(parent)} />",
+            f"    <child link={_attr(child)} />",
+            f'    <origin xyz="{_numbers(T[:3, 3])}" rpy="{_numbers(so3.rpy(T[:3, :3]))}" />', "  </joint>"]
+
+
+@functools.lru_cache(maxsize=1024)
+def _attr(value: str) -> str:
+    """``value`` as ElementTree writes it as an attribute value: quoted and escaped."""
+    return ET.tostring(ET.Element("a", v=value), encoding="unicode").removeprefix("<a v=").removesuffix(" />")
 
 
 def _numbers(v: ArrayLike) -> str:
