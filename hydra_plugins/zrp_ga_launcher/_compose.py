@@ -31,6 +31,11 @@ tests/test_sweeps.py compares the configs (YAML, node types, flags) with Hydra's
 sweeps. A Hydra release that changes what this relies on can make sweeps slower, never wrong:
 ``hydra.launcher.cached_composition=false`` (and any sweep with ``hydra.searchpath``) uses
 Hydra's own composition for every job.
+
+Hydra's sweeper composes every job once to check it before the launch, and the launcher needs
+each job again: the loader keeps what it composed for that second call, as configs for the first
+``KEEP_ASKED`` jobs, or, when the launcher asks for a note of each job (``note``: zrp_ga's batch
+key), as the notes and the configs pickled and compressed (:meth:`ComposingLoader.pickled_config`).
 """
 
 from __future__ import annotations

@@ -11,9 +11,13 @@ run layer; other jobs (and all with ``hydra.launcher.lockstep=false``) one at a 
 Hydra's ``run_job``, as Hydra's own launchers run them. Each job's ``JobReturn`` goes back as
 soon as it is known.
 
-The driver (:func:`launch`) composes the jobs' configs ahead while the workers run and groups
-them by batch key: a batch is ``batch_size`` jobs of one key (enough for every worker to get a
-few; fewer at the end, or when too many wait composed), a job without a key goes alone. A
+The driver (:func:`launch`) groups the jobs by batch key: a batch is ``batch_size`` jobs of one
+key (enough for every worker to get a few; fewer when the key has no more, at the end, or when
+too many wait composed), a job without a key goes alone. The keys are noted, and the configs
+kept pickled, by the config loader as Hydra's sweeper checks the jobs (``_compose``), so that
+the jobs of a key far apart in the sweep (a seed sweep of simulated instances: ``seed`` varies
+fastest and each seed is an instance) are sent together, whole; without them (another config
+loader) the driver composes the jobs in their order ahead while the workers run. A
 worker holds one batch of jobs run together (two of other jobs: one running, one waiting).
 The driver collects the returns in job order and rewrites the manifest table now and then. A
 worker that dies (killed, out of memory) fails its unfinished jobs, which are recorded in the
