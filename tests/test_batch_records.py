@@ -133,13 +133,16 @@ def test_yaml_texts_of_odd_values_at_any_depth_are_omegaconfs():
 
 
 def test_a_batch_leaves_the_collector_as_it_found_it():
-    """The batch's collector settings (objects from before it frozen, fewer collections) undone
-    after it, also when it fails; a process that froze its own objects keeps them frozen."""
+    """``few_collections(freeze_older=True)``, around a batch (``_batch.run_batch``): the
+    collector settings (objects from before it frozen, fewer collections) undone after it, also
+    when it fails; a process that froze its own objects keeps them frozen."""
     import gc
+
+    from zrp_ga.run import shared
 
     before = gc.get_threshold()
     assert gc.get_freeze_count() == 0
-    with pytest.raises(KeyboardInterrupt), _batch._few_collections():
+    with pytest.raises(KeyboardInterrupt), shared.few_collections(freeze_older=True):
         kept = [object()]
         assert gc.get_freeze_count() > 0 and gc.get_threshold()[0] >= 20_000
         raise KeyboardInterrupt
@@ -147,7 +150,7 @@ def test_a_batch_leaves_the_collector_as_it_found_it():
     gc.freeze()
     try:
         frozen = gc.get_freeze_count()
-        with _batch._few_collections():
+        with shared.few_collections(freeze_older=True):
             pass
         assert gc.get_freeze_count() == frozen
     finally:

@@ -53,30 +53,12 @@ def run_batch(jobs: list[tuple[int, DictConfig]], hydra_context: HydraContext, t
     setup_globals()  # Hydra's resolvers (a fresh process)
     if not is_zrp_ga(task_function):
         return [run_alone(idx, pickle.loads(cfg) if isinstance(cfg, bytes) else cfg, hydra_context, task_function) for idx, cfg in jobs]
-    with _few_collections():
+    from zrp_ga.run.shared import few_collections
+
+    # the objects from before the batch frozen: each full collection went over all of them, about
+    # half the batch's own CPU besides its runs
+    with few_collections(freeze_older=True):
         return _Batch(jobs, hydra_context, task_function).run()
-
-
-@contextlib.contextmanager
-def _few_collections() -> Iterator[None]:
-    """Python's cyclic garbage collector kept off the objects that were there before the batch
-    (Hydra's, numpy's, scipy's, the process's caches: each full collection went over all of them,
-    about half the batch's own CPU besides its runs) and run less often while the jobs' configs
-    are unpickled (many objects, little garbage). Only the objects made during the batch are
-    examined; the others again after it. Nothing a run computes depends on it."""
-    import gc
-
-    frozen = gc.get_freeze_count() == 0  # a process that froze its objects itself keeps them so
-    if frozen:
-        gc.freeze()
-    before = gc.get_threshold()
-    gc.set_threshold(max(before[0], 20_000), *before[1:])
-    try:
-        yield
-    finally:
-        gc.set_threshold(*before)
-        if frozen:
-            gc.unfreeze()
 
 
 def run_alone(idx: int, config: DictConfig, hydra_context: HydraContext, task_function: TaskFunction) -> JobReturn:

@@ -96,13 +96,11 @@ def _few_collections() -> Iterator[None]:
     import atexit
     import gc
 
+    from zrp_ga.run.shared import few_collections
+
     atexit.register(gc.freeze)  # runs when the process ends, before Python's last collections
-    before = gc.get_threshold()
-    gc.set_threshold(max(before[0], 20_000), *before[1:])
-    try:
+    with few_collections():
         yield
-    finally:
-        gc.set_threshold(*before)
 
 
 def _continue_with() -> str:

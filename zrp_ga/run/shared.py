@@ -5,12 +5,14 @@ small runs, and the identifiability and the floor of an instance cost an SVD and
 sweep's jobs in one worker process, and a single run's check and run, take them from
 :data:`CACHE` by the instance's key (its resolved robot and problem settings and the seed, as
 JSON: instances are pure functions of it). Nothing else is kept between runs.
+:func:`few_collections` sets the process's garbage collector for work that makes many objects.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 MAX_INSTANCES = 8
@@ -38,3 +40,25 @@ class Cache:
 
 
 CACHE = Cache()
+
+
+@contextlib.contextmanager
+def few_collections(freeze_older: bool = False) -> Iterator[None]:
+    """Python's cyclic garbage collector run less often inside (work making many objects and
+    little garbage: a run's imports and config, a batch's configs), and with ``freeze_older``
+    not over the objects that were there before (Hydra's, numpy's, scipy's: each full collection
+    goes over all of them), unless the process froze its objects itself. The settings are
+    restored after, also on an exception. Nothing a run computes depends on it."""
+    import gc
+
+    frozen = freeze_older and gc.get_freeze_count() == 0
+    if frozen:
+        gc.freeze()
+    before = gc.get_threshold()
+    gc.set_threshold(max(before[0], 20_000), *before[1:])
+    try:
+        yield
+    finally:
+        gc.set_threshold(*before)
+        if frozen:
+            gc.unfreeze()
