@@ -442,7 +442,8 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
     """A sweep whose jobs of one batch key lie far apart (``seed`` varying fastest: one problem
     instance per seed) and more jobs than the driver composes ahead: the keys the loader noted
     as the sweeper checked the jobs put each key's jobs in one batch, all of them; without
-    the notes (a loader that noted nothing) the jobs go in their order, in smaller batches.
+    the notes (a loader that notes nothing, or jobs not checked before the launch) the jobs go
+    in their order, in smaller batches.
     Every job's config as sent (kept from the check, pickled, beyond the few kept as they are)
     is Hydra's own composition of the job."""
     import collections
@@ -459,13 +460,13 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
     jobs = [[f"crossover={c}", f"seed={s}"] for c in ("sbx", "blend", "one_point", "two_point") for s in range(6)]
     jobs.insert(5, ["algorithm=lm", "seed=0"])  # a job without a key, among them
 
-    def sent(noting: bool) -> list[tuple[bool, list[int]]]:
+    def sent(noting: bool, checked: bool = True) -> list[tuple[bool, list[int]]]:
         loader = _compose.ComposingLoader(hydra_loader)
         if noting:
             loader.note = _workers._Dispatcher.key
-        for overrides in jobs:  # as Hydra's sweeper checks every job before the launch
+        for overrides in jobs if checked else []:  # as Hydra's sweeper checks every job before the launch
             loader.load_sweep_config(master, overrides)
-        if noting:  # the first jobs' configs kept pickled, up to the bytes allowed
+        if noting and checked:  # the first jobs' configs kept pickled, up to the bytes allowed
             assert 0 < len(loader._pickled) < len(jobs) and not loader._asked
         launcher = types.SimpleNamespace(config=master, settings=config.ZrpGaLauncherConf(),
                                          hydra_context=HydraContext(config_loader=loader, callbacks=None),
@@ -482,8 +483,7 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
             out.append((together, sorted(idx for idx, _, _ in got)))
             for idx, _, data in got:
                 assert OmegaConf.to_yaml(pickle.loads(data)) == OmegaConf.to_yaml(hydra_loader.load_sweep_config(master, jobs[idx]))
-        if noting:
-            assert not loader._pickled and not loader._asked  # each kept config taken once
+        assert not loader._pickled and not loader._asked  # each kept config taken once
         assert sorted(i for _, b in out for i in b) == list(range(len(jobs)))
         return out
 
@@ -494,6 +494,7 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
     assert len(together) == 6 and all(len(b) == 4 and len({seeds[i] for i in b}) == 1 for b in together)
     assert [b for t, b in noted if not t] == [[5]]
     assert max(len(b) for t, b in sent(False) if t) < 4
+    assert max(len(b) for t, b in sent(True, checked=False) if t) < 4  # nothing noted before the launch: in order
 
 
 def test_yaml_records_are_omegaconfs_text(hydra_loader):

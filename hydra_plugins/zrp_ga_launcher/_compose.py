@@ -174,14 +174,16 @@ class ComposingLoader(ConfigLoader):
             self._pickled_bytes += len(data)
         return cfg
 
-    def pickled_config(self, master_config: DictConfig, sweep_overrides: list[str]) -> bytes:
+    def pickled_config(self, master_config: DictConfig, sweep_overrides: list[str], compose: bool = True) -> bytes | None:
         """``pickle.dumps(load_sweep_config(master_config, sweep_overrides))``, from the
-        config kept when the sweeper checked the job, if it was."""
+        config kept when the sweeper checked the job, if it was (else None with ``compose=False``)."""
         key = (id(master_config), tuple(sweep_overrides))
         data = self._pickled.pop(key, None)
         if data is not None:
             self._pickled_bytes -= len(data)
             return zlib.decompress(data)
+        if not compose:
+            return None
         if key in self._asked or not self.enabled or OmegaConf.select(master_config, "hydra.searchpath"):
             return pickle.dumps(self.load_sweep_config(master_config, sweep_overrides))
         return pickle.dumps(self._compose(master_config, sweep_overrides))  # not kept again

@@ -395,7 +395,9 @@ class _Dispatcher:
             self.left[key] -= 1
         else:
             config = self.compose(overrides)
-            key, data = self.key(config), pickle.dumps(config)
+            kept = getattr(loader, "pickled_config", None)  # a config the loader kept as it composed it (with notes)
+            data = kept(self.launcher.config, overrides, compose=False) if kept else None
+            key, data = self.key(config), pickle.dumps(config) if data is None else data
         job = (idx, overrides, data)
         self.alone.append(job) if key is None else self.pending.setdefault(key, []).append(job)
         self.waiting += 1
