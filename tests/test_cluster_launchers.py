@@ -15,6 +15,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 from omegaconf import OmegaConf
+from test_sweeps import _summary  # a run's summary.json without its timing and launcher
 
 from zrp_ga import config
 from zrp_ga.callbacks import WALL_CLOCK_COLUMNS
@@ -45,14 +46,6 @@ def _kill_job(job: str) -> None:
             os.kill(p, signal.SIGKILL)
         except ProcessLookupError:
             pass
-
-
-def _summary(run: Path) -> dict:
-    s = json.loads((run / "summary.json").read_text())
-    for key in ("wall_s", "versions"):
-        s.pop(key)
-    s["choices"].pop("hydra/launcher")
-    return s
 
 
 def _same_runs(sweep: Path, reference: Path, once: bool = True) -> None:

@@ -395,9 +395,10 @@ class _Dispatcher:
             self.left[key] -= 1
         else:
             config = self.compose(overrides)
-            kept = getattr(loader, "pickled_config", None)  # a config the loader kept as it composed it (with notes)
+            kept = getattr(loader, "pickled_config", None)  # with notes: the config and key the loader kept as it composed it
             data = kept(self.launcher.config, overrides, compose=False) if kept else None
-            key, data = self.key(config), pickle.dumps(config) if data is None else data
+            key = self.key(config) if data is None else loader.noted_for(self.launcher.config, overrides)
+            data = pickle.dumps(config) if data is None else data
         job = (idx, overrides, data)
         self.alone.append(job) if key is None else self.pending.setdefault(key, []).append(job)
         self.waiting += 1
