@@ -29,7 +29,7 @@ def _report_rows(folder: Path) -> list[tuple[str, str, str, str]]:
     """zrp-ga-report on a missing folder, on a file, and on a good run beside a truncated one and
     one holding a cost of -inf."""
     (folder / "afile").write_text("x")
-    subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem.n_validation=5", "population.generations=2", "progress=false",
+    subprocess.run([sys.executable, "-m", "zrp_ga.cli", "problem.n_validation=5", "population.generations=2", "progress=false",
                     f"hydra.run.dir={folder / 'runs' / 'good'}"], check=True, capture_output=True)  # fmt: skip
     for name, last in (("broken", "0."), ("minus-inf", "-inf\n")):
         run = folder / "runs" / name
@@ -41,7 +41,7 @@ def _report_rows(folder: Path) -> list[tuple[str, str, str, str]]:
                              ("wrong kind of path", "a file given as a run folder", ["afile"]),
                              ("corrupted file", "a run whose convergence.csv was cut short (left out, named, the rest go on)",
                               ["runs"])):  # fmt: skip
-        proc = subprocess.run([sys.executable, "-m", "zrp_ga.report", *args, "--out", "rep", "--formats", "none"],
+        proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli.report", *args, "--out", "rep", "--formats", "none"],
                               capture_output=True, text=True, cwd=folder)  # fmt: skip
         out = (proc.stderr.strip() or proc.stdout.strip()).splitlines()
         said = [x for x in out if "error" in x or "left out" in x] or out[:1]
@@ -55,25 +55,25 @@ def _report_rows(folder: Path) -> list[tuple[str, str, str, str]]:
 def _run_directory_rows(folder: Path) -> list[tuple[str, str, str, str]]:
     """zrp-ga resuming a run whose robot file changed since its checkpoint, and a run into a
     directory another run is writing into (its lock held here)."""
-    from zrp_ga import robots
+    from zrp_ga.io import presets
     from zrp_ga.run import directory
 
     arm = folder / "arm.yaml"
-    arm.write_text(robots.path("puma560").read_text())
-    subprocess.run([sys.executable, "-m", "zrp_ga.app", "robot=file", f"robot.file={arm}", "problem.n_validation=5",
+    arm.write_text(presets.path("puma560").read_text())
+    subprocess.run([sys.executable, "-m", "zrp_ga.cli", "robot=file", f"robot.file={arm}", "problem.n_validation=5",
                     "population.generations=2", "progress=false", f"hydra.run.dir={folder / 'run'}"],
                    check=True, capture_output=True)  # fmt: skip
     arm.write_text(arm.read_text().replace("a: 0.4318", "a: 0.4500"))
     cases = [("changed input", "resuming a run whose robot file changed since its checkpoint", ["resume=DIR/run"])]
     rows = []
     for kind, what, args in cases:
-        proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", *(a.replace("DIR", str(folder)) for a in args)],
+        proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", *(a.replace("DIR", str(folder)) for a in args)],
                               capture_output=True, text=True, cwd=folder)  # fmt: skip
         rows.append((kind, what, "zrp-ga " + " ".join(args), f"{proc.stderr.strip()} (exit {proc.returncode})"))
     busy = folder / "busy"
     busy.mkdir()
     with directory.locked(busy):
-        proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem.n_validation=5", "population.generations=2",
+        proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "problem.n_validation=5", "population.generations=2",
                                f"hydra.run.dir={busy}"], capture_output=True, text=True, cwd=folder)  # fmt: skip
     line = proc.stderr.strip().replace(f"process {os.getpid()}", "process PID")
     rows.append(("directory in use", "a run into a directory another run is writing into",
@@ -103,7 +103,7 @@ def main() -> None:
              "on stderr, exit code 2, and no run directory (a report leaves out a damaged run by name and goes on). "
              "Every file read must be a regular file (a FIFO, device or socket is refused, a symlink loop named as "
              "one). A run that would not fit the memory this machine has available is refused with the estimate "
-             "and the setting to lower (`zrp_ga.budget`; the environment variable `ZRP_GA_MEMORY`, e.g. `8G`, "
+             "and the setting to lower (`zrp_ga.run.budget`; the environment variable `ZRP_GA_MEMORY`, e.g. `8G`, "
              "replaces the available amount); one estimated to take more than ten minutes is announced. "
              "`DIR` stands for the folder of the example. Written by `python experiments/bad_inputs.py` from the "
              "cases of `tests/test_bad_inputs.py` and `tests/test_bad_inputs_more.py`, which check each of them.", "",

@@ -36,10 +36,11 @@ import llvmlite.binding as llvm
 import numba
 import numpy as np
 
-from zrp_ga import kinematics, robots
-from zrp_ga.layout import Layout
-from zrp_ga.measurements import Measurements
-from zrp_ga.problem import CalibrationProblem
+from zrp_ga.io import presets
+from zrp_ga.model import kinematics
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout
+from zrp_ga.model.poses import Measurements
 
 OUT = Path(__file__).resolve().parent / "results" / "bench_kinematics.md"
 CHAINS = 10  # independent accumulators in the peak benchmark
@@ -161,7 +162,7 @@ def medians(candidates: dict, seconds: float, clock=time.thread_time) -> dict[st
 def population(P: int, M: int, seed: int = 0):
     """P PUMA 560 parameter sets (axes +-0.01, body vectors +-0.5 mm), M poses measured on the nominal arm."""
     rng = np.random.default_rng(seed)
-    robot = robots.get("puma560")
+    robot = presets.get("puma560")
     u0 = robot.u0 + rng.uniform(-0.01, 0.01, size=(P, 6, 3))
     u0 /= np.linalg.norm(u0, axis=-1, keepdims=True)
     b0 = robot.b0 + rng.uniform(-5e-4, 5e-4, size=(P, 7, 3))

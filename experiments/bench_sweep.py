@@ -69,8 +69,8 @@ ROOT = Path(__file__).resolve().parents[1]
 GRID = ["experiment=operator_grid"]
 LAUNCHERS = {"basic": [], "joblib": ["hydra/launcher=joblib"], "zrp_ga": ["hydra/launcher=local"]}
 LOCAL = LAUNCHERS["zrp_ga"]
-RUN_MODULES = ("zrp_ga.app zrp_ga.robots zrp_ga.problems.simulated zrp_ga.algorithms.ga zrp_ga.operators "
-               "zrp_ga.callbacks zrp_ga.summary zrp_ga.records zrp_ga.checkpoint threadpoolctl")  # fmt: skip
+RUN_MODULES = ("zrp_ga.cli.main zrp_ga.io.presets zrp_ga.problems.simulated zrp_ga.algorithms.ga zrp_ga.operators "
+               "zrp_ga.run.callbacks zrp_ga.run.summary zrp_ga.io.records zrp_ga.run.checkpoint threadpoolctl")  # fmt: skip
 OFFSPRING = 50  # lambda of the grid's runs
 # The committed studies (experiments/README.md): their sweeps (experiment configs), and per report
 # the options that made the committed tables and those tables (a committed name: the report's file
@@ -105,7 +105,7 @@ def tree(rev: str, where: Path) -> Path:
 
 
 def command(args: list[str], code: Path | None, cwd: Path,
-            module: str = "zrp_ga.app") -> tuple[float, float, subprocess.CompletedProcess]:  # fmt: skip
+            module: str = "zrp_ga.cli") -> tuple[float, float, subprocess.CompletedProcess]:  # fmt: skip
     """Wall and CPU seconds (all processes) of ``python -m MODULE ARGS``."""
     env = dict(os.environ, PYTHONPATH=str(code)) if code else dict(os.environ)
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -459,7 +459,7 @@ def report(raw: dict) -> str:
     lines += ["", "## Identical curves: every run of the grid against the same run alone", "",
               "`zrp-ga experiment=operator_grid hydra/launcher=local hydra.launcher.lockstep=false` (every job "
               f"evolved alone): {a['wall_s']:.1f} s wall, {a['cpu_s']:.1f} s CPU, {a['done']} of {a['runs']} jobs "
-              "done. Each run's convergence.csv without its timing columns (`zrp_ga.callbacks.WALL_CLOCK_COLUMNS`) "
+              "done. Each run's convergence.csv without its timing columns (`zrp_ga.run.callbacks.WALL_CLOCK_COLUMNS`) "
               "and its summary.json without `wall_s` and `versions`, against the same job of the first timed sweep "
               f"(`experiments/reference_runs.py`, `run_differences`): {verdict}"]  # fmt: skip
     lines += [f"- {d}" for d in named]

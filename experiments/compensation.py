@@ -34,9 +34,11 @@ from pathlib import Path
 import numpy as np
 
 import zrp_ga
-from zrp_ga import compensation, kinematics, robots, so3
+from zrp_ga.compensation import compensate as compensation
 from zrp_ga.data import resolve
-from zrp_ga.robot import ZRPRobot
+from zrp_ga.io import presets
+from zrp_ga.model import kinematics, so3
+from zrp_ga.model.robot import ZRPRobot
 
 RESULTS = Path(__file__).parent / "results"
 D = np.pi / 180
@@ -56,7 +58,7 @@ def scara() -> ZRPRobot:
                              limits=[[-2.9, 2.9], [-2.5, 2.5], [0.0, 0.3], [-6, 6]])  # fmt: skip
 
 
-ARMS = {"PUMA 560 (6R)": lambda: robots.get("puma560"), "Stanford arm (RRPRRR)": lambda: robots.get("stanford"),
+ARMS = {"PUMA 560 (6R)": lambda: presets.get("puma560"), "Stanford arm (RRPRRR)": lambda: presets.get("stanford"),
         "SCARA (RRPR, 4 joints)": scara}  # fmt: skip
 
 

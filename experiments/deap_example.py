@@ -6,7 +6,7 @@ individuals, run by DEAP's own ``algorithms.eaMuPlusLambda``.
 
 The operators are the defaults of ``zrp-ga``: tournaments of 3, two-point crossover, Gaussian
 mutation (sigma 0.1 of the gene range, indpb 0.2), children clipped into the gene ranges, and
-a tenth of the children taking the pseudo-inverse step. ``zrp_ga.deap_tools.for_deap`` turns
+a tenth of the children taking the pseudo-inverse step. ``zrp_ga.operators.deap_tools.for_deap`` turns
 each into DEAP's convention (lists changed in place); ``toolbox.map`` evaluates a generation in
 one vectorised call. It prints the final cost beside Levenberg-Marquardt's floor on the same
 problem (the 30-pose PUMA 560 problem of ``zrp-ga problem=multipose``).
@@ -20,9 +20,9 @@ import random
 import numpy as np
 from deap import algorithms, base, tools
 
-from zrp_ga import config, deap_tools
-from zrp_ga.app import prepare
-from zrp_ga.operators import crossover, mutation, refine, selection
+from zrp_ga import config
+from zrp_ga.operators import crossover, deap_tools, mutation, refine, selection
+from zrp_ga.run.build import prepare
 
 
 def toolbox_for(problem, rng: np.random.Generator, refine_share: float = 0.1) -> base.Toolbox:

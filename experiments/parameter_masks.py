@@ -26,8 +26,9 @@ from pathlib import Path
 import numpy as np
 
 import zrp_ga
-from zrp_ga import robots, simulation
-from zrp_ga.layout import Layout
+from zrp_ga.io import presets
+from zrp_ga.model import simulation
+from zrp_ga.model.layout import Layout
 
 OUT = Path(__file__).parent / "results" / "parameter_masks.md"
 MASKS = {"all free": None, "base, tool fixed": ["base", "tool"], "base, tool, u0_1, u0_6 fixed": ["base", "tool", "u0_1", "u0_6"]}
@@ -50,7 +51,7 @@ def main() -> None:
     args = ap.parse_args()
     logging.disable(logging.WARNING)  # the runs' warnings about unidentifiable directions: the point here
     warnings.simplefilter("ignore")
-    robot = robots.get("ur10")
+    robot = presets.get("ur10")
     rows = []
     for case, span in CASES.items():
         rng = np.random.default_rng(args.seed)

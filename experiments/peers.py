@@ -109,7 +109,7 @@ def cma_package(problem, budget: int, seed: int) -> Trace:
 def floor_of(task) -> float:
     """The floor's reference as runs with ``objective=over_floor`` divide by (LM's cost, or 1e-9 x
     the nominal cost where that is round-off)."""
-    from zrp_ga import summary
+    from zrp_ga.run import summary
 
     return summary.floor(task)["reference"]
 

@@ -176,7 +176,7 @@ def figure(summary: pd.DataFrame, refs: dict[str, dict], path: Path) -> None:
 
 
 def markdown(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
-    from zrp_ga.report.cli import markdown as table
+    from zrp_ga.report.common import markdown as table
 
     return table(df, floatfmt)
 

@@ -3,7 +3,7 @@
     python experiments/reference_runs.py OUT            # run them, write OUT/<name>.csv and OUT/<name>.json
     python experiments/reference_runs.py --compare A B  # the same numbers in A and B?
 
-Each run goes through the command line (``python -m zrp_ga.app``, as ``zrp-ga``), except
+Each run goes through the command line (``python -m zrp_ga.cli``, as ``zrp-ga``), except
 ``api``, which goes through ``zrp_ga.calibrate``. Kinds: simulated (GA with and without the
 pseudo-inverse step, LM, CMA-ES), measured (the UR10 laser-tracker data), pose selection, and a
 GA run stopped by Ctrl-C after generation 23 then resumed (``zrp-ga resume=DIR``). Written per
@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from zrp_ga.callbacks import WALL_CLOCK_COLUMNS as TIMING
+from zrp_ga.run.callbacks import WALL_CLOCK_COLUMNS as TIMING
 
 SMALL = ["problem=multipose", "problem.n_poses=10", "problem.n_validation=10", "seed=4"]
 RUNS = {
@@ -42,7 +42,7 @@ RESUMED = [*SMALL, "refine=none", "population.mu=30", "population.lambda_=30", "
 # A Ctrl-C after generation 23, in the run's own process: the convergence log raises it.
 CUT = """
 import runpy, sys
-from zrp_ga import callbacks
+from zrp_ga.run import callbacks
 write = callbacks.ConvergenceLog.on_generation
 def cut(self, algorithm, row):
     write(self, algorithm, row)
@@ -50,7 +50,7 @@ def cut(self, algorithm, row):
         raise KeyboardInterrupt
 callbacks.ConvergenceLog.on_generation = cut
 sys.argv = ["zrp-ga", *sys.argv[1:]]
-runpy.run_module("zrp_ga.app", run_name="__main__")
+runpy.run_module("zrp_ga.cli", run_name="__main__")
 """
 SUMMARY_KEYS = ["instance", "algorithm", "seed", "final_cost", "optimiser_cost", "returned", "initial_cost",
                 "nominal_cost", "nevals", "stop_reason", "validation_rms_mm", "validation_max_mm", "param_err",
@@ -59,7 +59,7 @@ SUMMARY_TIMING = ("wall_s", "versions")  # the fields of summary.json that depen
 
 
 def command(args: list[str], script: str | None = None) -> subprocess.CompletedProcess:
-    head = ["-c", script] if script else ["-m", "zrp_ga.app"]
+    head = ["-c", script] if script else ["-m", "zrp_ga.cli"]
     return subprocess.run([sys.executable, *head, *args, "progress=false"], capture_output=True, text=True)
 
 

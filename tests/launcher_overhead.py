@@ -44,7 +44,8 @@ def main() -> None:
     from hydra.types import HydraContext, RunMode
 
     from hydra_plugins.zrp_ga_launcher import _batch, _compose, _workers
-    from zrp_ga import cli, config
+    from zrp_ga import config
+    from zrp_ga.cli import main as cli_main
     from zrp_ga.run import execute
 
     config.register()
@@ -59,7 +60,7 @@ def main() -> None:
         settings = config.ZrpGaLauncherConf(lockstep=args.lockstep == "true")
         context = HydraContext(config_loader=loader, callbacks=_Callbacks(master))
         launcher = types.SimpleNamespace(config=master, hydra_context=context, settings=settings,
-                                         task_function=cli.main.__wrapped__)  # fmt: skip
+                                         task_function=cli_main.main.__wrapped__)  # fmt: skip
         pool = types.SimpleNamespace(workers=[None, None])
         todo = collections.deque(enumerate(jobs))
         dispatcher = _workers._Dispatcher(launcher, pool, todo, sweep)
@@ -92,7 +93,7 @@ def main() -> None:
 
         if args.lockstep == "true":
             execute.sweep_batch = timed
-        else:  # the task function's run (zrp_ga.cli.main calls execute.sweep_job)
+        else:  # the task function's run (zrp_ga.cli.main.main calls execute.sweep_job)
             real = execute.sweep_job
             execute.sweep_job = timed
         t0 = time.process_time()

@@ -17,8 +17,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import zrp_ga
-from zrp_ga import config, kinematics, robots
-from zrp_ga.measurements import Measurements
+from zrp_ga import config, robots
+from zrp_ga.model import kinematics
+from zrp_ga.model.poses import Measurements
 
 ARM = robots.load("puma560")
 FRAME = (Rotation.from_rotvec([0.3, -0.2, 1.1]).as_matrix(), np.array([1.5, -0.4, 0.2]))

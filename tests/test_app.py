@@ -7,9 +7,12 @@ import pandas as pd
 import pytest
 from hydra.errors import ConfigCompositionException, MissingConfigException
 
-from zrp_ga import app, config
-from zrp_ga.callbacks import COLUMNS, WALL_CLOCK_COLUMNS
+from zrp_ga import config
+from zrp_ga.cli import main as cli_main
 from zrp_ga.config import ConfigError
+from zrp_ga.core.errors import one_line
+from zrp_ga.run import build, execute
+from zrp_ga.run.callbacks import COLUMNS, WALL_CLOCK_COLUMNS
 
 
 def _cfg(*overrides):
@@ -18,14 +21,14 @@ def _cfg(*overrides):
 
 def _run(cfg, path):
     """Run and return what the run wrote into summary.json."""
-    objective = app.run(cfg, path)
+    objective = execute.run(cfg, path)
     summary = json.loads((path / "summary.json").read_text())
     assert objective == summary["final_cost"]
     return summary
 
 
 def _zrp_ga(*args, **kw):
-    return subprocess.run([sys.executable, "-m", "zrp_ga.app", *args], capture_output=True, text=True, **kw)
+    return subprocess.run([sys.executable, "-m", "zrp_ga.cli", *args], capture_output=True, text=True, **kw)
 
 
 def test_default_run_writes_every_file(tmp_path):
@@ -48,12 +51,12 @@ def test_default_run_writes_every_file(tmp_path):
 
 def test_same_seed_same_convergence_csv(tmp_path):
     over = ["problem=multipose", "problem.n_validation=10", "population.generations=4"]
-    app.run(_cfg(*over, "seed=7"), tmp_path / "a")
-    app.run(_cfg(*over, "seed=7"), tmp_path / "b")
+    execute.run(_cfg(*over, "seed=7"), tmp_path / "a")
+    execute.run(_cfg(*over, "seed=7"), tmp_path / "b")
     a = pd.read_csv(tmp_path / "a" / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS)
     b = pd.read_csv(tmp_path / "b" / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS)
     pd.testing.assert_frame_equal(a, b)
-    app.run(_cfg(*over, "seed=8"), tmp_path / "c")
+    execute.run(_cfg(*over, "seed=8"), tmp_path / "c")
     c = pd.read_csv(tmp_path / "c" / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS)
     assert not a.equals(c)
 
@@ -86,14 +89,14 @@ def test_lm_finds_the_floor_and_the_ga_with_pinv_meets_it(tmp_path):
 )
 def test_bad_settings_stop_before_any_work(tmp_path, override, message):
     with pytest.raises(ConfigError, match=message):
-        app.run(_cfg(override), tmp_path / "run")
+        execute.run(_cfg(override), tmp_path / "run")
     assert not (tmp_path / "run").exists()
 
 
 def test_a_string_choice_outside_its_enum_fails_at_composition():
     with pytest.raises(ConfigCompositionException) as info:
         _cfg("problem.cost=quadratic")
-    assert "Invalid value 'quadratic', expected one of [linear, nonlinear]" in app.one_line(info.value)
+    assert "Invalid value 'quadratic', expected one of [linear, nonlinear]" in one_line(info.value)
 
 
 def test_unknown_operator_fails_at_composition():
@@ -102,12 +105,12 @@ def test_unknown_operator_fails_at_composition():
 
 
 def test_one_pose_warns_once_with_one_consistent_rank(tmp_path, caplog):
-    app.run(_cfg("problem.n_validation=5", "population.generations=1"), tmp_path / "a")
+    execute.run(_cfg("problem.n_validation=5", "population.generations=1"), tmp_path / "a")
     warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     assert len(warnings) == 1
     assert warnings[0].startswith("the calibration poses identify 12 of the 31 parameter combinations the model can identify (36 parameters)")
     caplog.clear()
-    app.run(_cfg("problem=multipose", "problem.n_validation=5", "population.generations=1"), tmp_path / "b")
+    execute.run(_cfg("problem=multipose", "problem.n_validation=5", "population.generations=1"), tmp_path / "b")
     assert "calibration poses identify" not in caplog.text  # 30 poses carry all the model can identify
 
 
@@ -119,15 +122,15 @@ def test_command_line_error_is_one_line_and_leaves_no_directory(tmp_path):
 
 
 def test_the_optimiser_never_starts_from_the_truth(tmp_path):
-    app.run(_cfg("problem.n_validation=5", "population.generations=1"), tmp_path)
+    execute.run(_cfg("problem.n_validation=5", "population.generations=1"), tmp_path)
     init = pd.read_csv(tmp_path / "initial_population.csv").drop(columns=["individual", "cost"]).to_numpy()
-    truth = app.prepare(_cfg(), tmp_path / "other").task.truth
+    truth = build.prepare(_cfg(), tmp_path / "other").task.truth
     assert np.min(np.abs(init[:, :, None] - truth[None, None, :])) > 1e-12  # no gene equals a true error
 
 
 def test_unknown_operator_parameter_is_refused_by_name(tmp_path):
     with pytest.raises(ValueError, match=r"crossover.op: unknown parameter 'etaa' for zrp_ga.operators.crossover.sbx \(takes: low, up, eta, indpb\)"):
-        app.run(_cfg("crossover=sbx", "+crossover.op.etaa=3"), tmp_path)
+        execute.run(_cfg("crossover=sbx", "+crossover.op.etaa=3"), tmp_path)
 
 
 # --- Hydra's own flags ----------------------------------------------------------------------------
@@ -151,7 +154,7 @@ def test_info_defaults_and_help(tmp_path):
         assert group in proc.stdout
     assert "convergence.csv" in proc.stdout and "app" not in proc.stdout.split()
     # zrp-ga lists the groups from one copy of Hydra's repository: the same text as Hydra's own
-    plain = "import sys; sys.argv = ['zrp-ga', '--help']; from zrp_ga import app; app.main()"
+    plain = "import sys; sys.argv = ['zrp-ga', '--help']; from zrp_ga.cli.main import main; main()"
     hydras = subprocess.run([sys.executable, "-c", plain], capture_output=True, text=True, cwd=tmp_path)
     assert hydras.stdout == proc.stdout
 
@@ -179,9 +182,9 @@ def test_objective_over_floor_divides_by_an_independent_least_squares_floor(tmp_
     from scipy.optimize import least_squares
 
     over = ["instance=puma560_6poses", "refine=none", "population.generations=5", "objective=over_floor"]
-    value = app.run(config.load(over), tmp_path / "ga", progress=False)
+    value = execute.run(config.load(over), tmp_path / "ga", progress=False)
     s = json.loads((tmp_path / "ga" / "summary.json").read_text())
-    p = app.prepare(config.load(over), None).task.problem
+    p = build.prepare(config.load(over), None).task.problem
     fit = least_squares(p.residual, np.zeros(p.lower.size), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     assert s["floor"]["cost"] == pytest.approx(float(p.costs(fit.x[None])[0]), rel=1e-6)
     assert value == pytest.approx(s["final_cost"] / s["floor"]["reference"]) and value > 1.0
@@ -190,9 +193,9 @@ def test_objective_over_floor_divides_by_an_independent_least_squares_floor(tmp_
 
 def test_exact_data_take_the_round_off_reference():
     """Without noise the floor is round-off: the objective divides by 1e-9 x the nominal cost."""
-    from zrp_ga import summary
+    from zrp_ga.run import summary
 
-    task = app.prepare(config.load(["instance=puma560_30poses_exact"]), None).task
+    task = build.prepare(config.load(["instance=puma560_30poses_exact"]), None).task
     f = summary.floor(task)
     nominal = float(task.problem.costs(np.zeros(task.problem.lower.size))[0])
     assert f["cost"] < 1e-12 * nominal and f["reference"] == pytest.approx(1e-9 * nominal)
@@ -210,7 +213,7 @@ def test_a_named_instance_is_the_same_whatever_the_runs_seed():
     (before, the run's seed replaced problem.seed and every seed drew another instance under
     the same instance name)."""
     def data(*over):
-        p = app.prepare(config.load(list(over)), None).task.problem
+        p = build.prepare(config.load(list(over)), None).task.problem
         return p.data.q, p.data.p
 
     a, b = data("instance=puma560_30poses", "seed=0"), data("instance=puma560_30poses", "seed=7")
@@ -225,7 +228,7 @@ def test_a_named_instance_is_the_same_whatever_the_runs_seed():
 
 def test_over_floor_is_refused_where_there_is_no_floor(tmp_path):
     with pytest.raises(ConfigError, match="objective: over_floor"):
-        app.prepare(config.load(["experiment=pose_selection", "objective=over_floor"]), tmp_path / "run")
+        build.prepare(config.load(["experiment=pose_selection", "objective=over_floor"]), tmp_path / "run")
 
 
 def test_the_command_line_builds_a_run_once(tmp_path, monkeypatch, capsys):
@@ -245,7 +248,7 @@ def test_the_command_line_builds_a_run_once(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(sys, "argv", ["zrp-ga", "hydra.run.dir=run", "crossover=sbx", "problem.n_validation=5",
                                       "population.generations=2", "progress=false"])  # fmt: skip
     GlobalHydra.instance().clear()
-    app.main()
+    cli_main.main()
     assert calls == {"prepare": 1, "build": 1}
     assert callbacks._PREPARED == {}  # handed over, nothing kept for the next run
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())

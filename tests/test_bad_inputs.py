@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from zrp_ga import kinematics, robots
+from zrp_ga import robots
+from zrp_ga.model import kinematics
 
 GOOD_ARM = robots.path("ur10").read_text()
 DH_ROW = "{name: j1, type: R, a: 0, alpha: 90, d: 0.1273, theta: 0}"
@@ -114,7 +115,7 @@ def run_case(case: Case, folder: Path) -> subprocess.CompletedProcess:
     args = [a.replace("{dir}", str(folder)) for a in case.args]
     if not any(a.startswith("hydra.run.dir=") for a in args):
         args.append(f"hydra.run.dir={folder}/run")
-    return subprocess.run([sys.executable, "-m", "zrp_ga.app", *args, "progress=false"], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "zrp_ga.cli", *args, "progress=false"], capture_output=True, text=True,
                           cwd=folder)  # fmt: skip
 
 

@@ -21,8 +21,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from zrp_ga import budget, checks, config, files, kinematics, measurements, robots
+from zrp_ga import config, robots
+from zrp_ga.core import checks, files
+from zrp_ga.io import measurements
+from zrp_ga.model import kinematics
+from zrp_ga.model.poses import Measurements
 from zrp_ga.problems import measured
+from zrp_ga.run import budget
 
 TIMEOUT_S = 240  # a FIFO read would hang: the case fails instead
 
@@ -80,7 +85,7 @@ def _checkpoint_fifo(d: Path) -> None:
 
 
 CASES = [
-    # --- too big for the machine (zrp_ga.budget) ------------------------------------------------
+    # --- too big for the machine (zrp_ga.run.budget) ------------------------------------------------
     Case("too big", "ten million simulated poses", ("problem=multipose", "problem.n_poses=10000000"),
          "problem.n_poses: the run would need about"),
     Case("too big", "a population of a billion", ("population.mu=1000000000",), "population: the run would need about"),
@@ -89,7 +94,7 @@ CASES = [
     Case("too big", "a 20000-row tracker file on a machine with 100 MB to spare", MEASURED,
          "problem.calibration_file: the run would need about",
          files=(("cal.csv", "\n".join([HEAD, *_points(20000)]) + "\n"),), env=(("ZRP_GA_MEMORY", "100M"),)),
-    # --- no regular file (zrp_ga.files) ---------------------------------------------------------
+    # --- no regular file (zrp_ga.core.files) ---------------------------------------------------------
     Case("not a regular file", "a FIFO given as the robot file", ("robot=file", "robot.file={dir}/arm.yaml"),
          "arm.yaml: a FIFO (named pipe), not a regular file", setup=_fifo("arm.yaml")),
     Case("not a regular file", "a FIFO given as the calibration file", MEASURED, "cal.csv: a FIFO (named pipe)",
@@ -136,7 +141,7 @@ def run_case(case: Case, folder: Path) -> subprocess.CompletedProcess:
     if not any(a.startswith("hydra.run.dir=") for a in args):
         args.append(f"hydra.run.dir={folder}/run")
     env = {**os.environ, **dict(case.env)}
-    return subprocess.run([sys.executable, "-m", "zrp_ga.app", *args, "progress=false"], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "zrp_ga.cli", *args, "progress=false"], capture_output=True, text=True,
                           cwd=folder, env=env, timeout=TIMEOUT_S)  # fmt: skip
 
 
@@ -227,12 +232,12 @@ def test_regular_file_says_what_is_there(tmp_path):
 def test_data_that_is_no_path_is_a_clear_type_error(data):
     fmt = measurements.zrp_format(6)
     with pytest.raises(TypeError, match=r"^measurement data: expected a file path .* or, for data in memory, "
-                                        r"zrp_ga.measurements.Measurements\(q, p\)"):  # fmt: skip
+                                        r"zrp_ga.model.poses.Measurements\(q, p\)"):  # fmt: skip
         measurements.read(data, fmt, robots.get("ur10"))
 
 
 # --- calibration rows again ------------------------------------------------------------------------
-def _read(rows: list[str], name: str, folder: Path) -> measurements.Measurements:
+def _read(rows: list[str], name: str, folder: Path) -> Measurements:
     path = folder / name
     path.write_text("\n".join([HEAD, *rows]) + "\n")
     return measurements.read(path, measurements.zrp_format(6, "mm"), robots.get("ur10"))
@@ -306,7 +311,7 @@ def test_out_of_memory_while_preparing_is_one_line_and_not_done_twice(tmp_path):
     def limit() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30))
 
-    proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem=multipose", "problem.n_poses=3000000", "progress=false",
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "problem=multipose", "problem.n_poses=3000000", "progress=false",
                            f"hydra.run.dir={tmp_path}/run"], capture_output=True, text=True, cwd=tmp_path, preexec_fn=limit,
                           env={**os.environ, "ZRP_GA_MEMORY": "100G"}, timeout=1200)  # fmt: skip
     lines = proc.stderr.strip().splitlines()

@@ -18,14 +18,14 @@ from omegaconf import OmegaConf
 from test_sweeps import _summary  # a run's summary.json without its timing and launcher
 
 from zrp_ga import config
-from zrp_ga.callbacks import WALL_CLOCK_COLUMNS
+from zrp_ga.run.callbacks import WALL_CLOCK_COLUMNS
 from zrp_ga.run.directory import read_manifest
 
 SMALL = ["problem.n_validation=5", "population.generations=3"]
 
 
 def _zrp_ga(*args, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "zrp_ga.app", *args], capture_output=True, text=True, **kw)
+    return subprocess.run([sys.executable, "-m", "zrp_ga.cli", *args], capture_output=True, text=True, **kw)
 
 
 def _cluster_jobs(sweep: Path) -> list[Path]:
@@ -162,7 +162,7 @@ def test_a_failed_cluster_job_fails_its_batch_and_the_sweep_continues(tmp_path, 
     sweep = tmp_path / "sweep"
     args = ["-m", "seed=0,1,2,3,4", *SMALL, "hydra/launcher=slurm", "hydra.launcher.cluster=local",
             "hydra.launcher.runs_per_job=2", f"hydra.sweep.dir={sweep}"]  # fmt: skip
-    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline, killed = time.monotonic() + 300, None
     while killed is None and time.monotonic() < deadline and proc.poll() is None:
         started = [j for j in _cluster_jobs(sweep) if j.name.isdigit()] if (sweep / ".submitit").exists() else []
@@ -204,7 +204,7 @@ def test_the_runs_a_failed_cluster_job_finished_stay_done(tmp_path):
     sweep = tmp_path / "sweep"
     args = ["-m", "seed=0,1,2", "problem.n_validation=5", "population.generations=1500", "hydra/launcher=slurm",
             "hydra.launcher.cluster=local", f"hydra.sweep.dir={sweep}"]  # fmt: skip
-    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline, killed = time.monotonic() + 600, None
     while killed is None and time.monotonic() < deadline and proc.poll() is None:
         if (sweep / "manifest.jsonl").exists() and '"job": 0' in (text := (sweep / "manifest.jsonl").read_text()) and '"done"' in text:
@@ -227,7 +227,7 @@ def test_the_runs_a_failed_cluster_job_finished_stay_done(tmp_path):
 
 def _stop_while_running(sweep: Path, args: list[str], stop) -> subprocess.CompletedProcess:
     """Run the sweep; ``stop(driver's process id)`` once run 0 is past its first checkpoint."""
-    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline, stopped = time.monotonic() + 600, False
     while not stopped and time.monotonic() < deadline and proc.poll() is None:
         rows = sweep / "0" / "convergence.csv"

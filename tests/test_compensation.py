@@ -10,9 +10,9 @@ from dh_reference import dh_fk
 from scipy.spatial.transform import Rotation
 
 import zrp_ga
-from zrp_ga.compensation import compensate
-from zrp_ga.compensation_cli import main
-from zrp_ga.robot import ZRPRobot
+from zrp_ga.cli.compensate import main
+from zrp_ga.compensation.compensate import compensate
+from zrp_ga.model.robot import ZRPRobot
 
 D = np.pi / 180
 PUMA = dict(d=[0.67183, 0, 0.15005, 0.4318, 0, 0], a=[0, 0.4318, 0.0203, 0, 0, 0],
@@ -241,7 +241,7 @@ def test_run_directory_compensation_on_the_true_arm(tmp_path):
     with pytest.raises(ValueError, match="a run's URDF carries its base and tool frames"):
         zrp_ga.compensate(tmp_path / "run" / "calibrated_robot.urdf", q, kind="joints")
     assert c.arms.nominal.name == "puma560"
-    from zrp_ga import kinematics
+    from zrp_ga.model import kinematics
 
     _, target = kinematics.forward(robot(PUMA), q)
     _, before = kinematics.forward(truth, q)
@@ -254,7 +254,7 @@ def test_run_directory_compensation_on_the_true_arm(tmp_path):
 def test_measured_run_frames(tmp_path):
     """Measured in an instrument frame with a probe on the flange: targets in the instrument's
     frame (frame='instrument', tool='calibration') come out as joints that put the true probe there."""
-    from zrp_ga.measurements import Measurements
+    from zrp_ga.model.poses import Measurements
 
     rng = np.random.default_rng(9)
     true = perturbed(PUMA, rng, length=5e-4, angle=2e-3)

@@ -1,4 +1,4 @@
-"""The ZRP cost and zrp_ga's operators in an ordinary DEAP script (zrp_ga.deap_tools,
+"""The ZRP cost and zrp_ga's operators in an ordinary DEAP script (zrp_ga.operators.deap_tools,
 experiments/deap_example.py)."""
 
 import importlib.util
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from deap import algorithms, base
 
-from zrp_ga import deap_tools, robots
-from zrp_ga.operators import crossover, mutation, refine, selection
+from zrp_ga import robots
+from zrp_ga.operators import crossover, deap_tools, mutation, refine, selection
 from zrp_ga.problems import simulated
 
 ROOT = Path(__file__).resolve().parents[1]

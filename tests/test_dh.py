@@ -5,10 +5,11 @@ import pytest
 from dh_reference import dh_fk
 from scipy.spatial.transform import Rotation
 
-from zrp_ga import kinematics, robots
-from zrp_ga.dh import DHTable, to_dh
-from zrp_ga.robot import ZRPRobot
-from zrp_ga.robot_files import dh_to_yaml, read_dh, read_robot
+from zrp_ga import robots
+from zrp_ga.io.robot_files import dh_to_yaml, read_dh, read_robot
+from zrp_ga.model import kinematics
+from zrp_ga.model.dh import DHTable, to_dh
+from zrp_ga.model.robot import ZRPRobot
 
 
 def reference_fk(table: DHTable, q):

@@ -16,11 +16,12 @@ import pytest
 from scipy.optimize import least_squares
 
 import zrp_ga
-from zrp_ga import dh, robots, simulation
-from zrp_ga.layout import Layout, dh_mask
-from zrp_ga.measurements import Measurements
-from zrp_ga.problem import CalibrationProblem
-from zrp_ga.robot_files import read_robot
+from zrp_ga import robots
+from zrp_ga.io.robot_files import read_robot
+from zrp_ga.model import dh, simulation
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout, dh_mask
+from zrp_ga.model.poses import Measurements
 
 # PUMA 560, standard DH (Corke), m and deg
 PUMA = dict(a=[0.0, 0.4318, 0.0203, 0.0, 0.0, 0.0], alpha=[90, 0, -90, 90, -90, 0], d=[0.67183, 0.0, 0.15005, 0.4318, 0.0, 0.1],
@@ -94,7 +95,7 @@ def test_fixed_dh_parameters_stay_and_the_free_ones_are_recovered(tmp_path):
     assert len(moved) > 15
     for name in moved:  # recovered (the data leave them only second-order errors)
         assert abs(got[name] - want[name]) < 2e-5 * max(1.0, abs(want[name])), (name, got[name], want[name])
-    R, p = zrp_ga.kinematics.forward(arm, q)
+    R, p = zrp_ga.model.kinematics.forward(arm, q)
     assert np.abs(p - data.p).max() < 1e-5
 
 
@@ -134,7 +135,7 @@ def test_summary_reports_the_fixed_dh_parameters_change(tmp_path):
 
 def test_bad_dh_names_are_refused(tmp_path):
     write_puma(tmp_path / "puma.yaml")
-    proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", f"robot.file={tmp_path / 'puma.yaml'}", "problem.fixed=[dh_theta_9]",
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", f"robot.file={tmp_path / 'puma.yaml'}", "problem.fixed=[dh_theta_9]",
                            f"hydra.run.dir={tmp_path}/run", "progress=false"], capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
     lines = proc.stderr.strip().splitlines()
     assert proc.returncode == 2 and len(lines) == 1, proc.stderr

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from zrp_ga import error_model, kinematics, robots, so3
-from zrp_ga.robot import ZRPRobot
+from zrp_ga import robots
+from zrp_ga.model import error_model, kinematics, so3
+from zrp_ga.model.robot import ZRPRobot
 
 
 def _random_arm(rng, types):

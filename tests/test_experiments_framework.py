@@ -13,9 +13,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from zrp_ga import app, callbacks, config, robots
-from zrp_ga.callbacks import WALL_CLOCK_COLUMNS
+from zrp_ga import config, robots
 from zrp_ga.config import ConfigError
+from zrp_ga.core.errors import one_line
+from zrp_ga.run import build, callbacks, execute
+from zrp_ga.run.callbacks import WALL_CLOCK_COLUMNS
 from zrp_ga.run.directory import read_manifest
 
 GROUPS = ["robot", "problem", "algorithm", "population", "selection", "crossover", "mutation", "inversion",
@@ -42,7 +44,7 @@ def test_every_option_of_every_group_composes_and_builds(group, tmp_path):
         if option == "measured":
             over += ["robot=ur10", "problem.format=ur10_ipa", "problem.calibration_file=pkg:ur10_ipa/series_b_joint_configurations.csv"]
         cfg = config.load(over)
-        p = app.prepare(cfg, tmp_path / "run")
+        p = build.prepare(cfg, tmp_path / "run")
         p.algorithm.setup(p.task.problem, np.random.default_rng(0))
         assert hasattr(p.algorithm.toolbox, "evaluate") and p.task.problem.layout.size >= 6 * p.task.robot.n
 
@@ -63,11 +65,11 @@ def test_launcher_presets_compose(preset, target):
 def test_schema_refuses_wrong_keys_and_types_at_composition(override, key):
     with pytest.raises(Exception) as info:
         config.load([override])
-    assert f"(key: {key})" in app.one_line(info.value)
+    assert f"(key: {key})" in one_line(info.value)
 
 
 def _zrp_ga(*args, **kw):
-    return subprocess.run([sys.executable, "-m", "zrp_ga.app", *args], capture_output=True, text=True, **kw)
+    return subprocess.run([sys.executable, "-m", "zrp_ga.cli", *args], capture_output=True, text=True, **kw)
 
 
 @pytest.mark.parametrize(
@@ -89,10 +91,10 @@ def test_bad_config_is_one_line_naming_the_key(tmp_path, override, expected):
 
 def test_a_run_never_overwrites_another(tmp_path):
     cfg = config.load(["problem.n_validation=5", "population.generations=2"])
-    app.run(cfg, tmp_path)
+    execute.run(cfg, tmp_path)
     before = (tmp_path / "convergence.csv").read_text()
     with pytest.raises(ConfigError, match="already holds a run"):
-        app.run(cfg, tmp_path)
+        execute.run(cfg, tmp_path)
     assert (tmp_path / "convergence.csv").read_text() == before
 
 
@@ -106,7 +108,7 @@ def _csv(path):
 
 def test_interrupted_run_resumes_to_the_same_csv(tmp_path, monkeypatch):
     cfg = config.load(FAST + ["population.generations=40", "checkpoint_every=7"])
-    app.run(cfg, tmp_path / "whole")
+    execute.run(cfg, tmp_path / "whole")
     write = callbacks.ConvergenceLog.on_generation
 
     def ctrl_c_after_gen_23(self, algorithm, row):
@@ -116,10 +118,10 @@ def test_interrupted_run_resumes_to_the_same_csv(tmp_path, monkeypatch):
 
     monkeypatch.setattr(callbacks.ConvergenceLog, "on_generation", ctrl_c_after_gen_23)
     with pytest.raises(KeyboardInterrupt):
-        app.run(cfg, tmp_path / "cut")
+        execute.run(cfg, tmp_path / "cut")
     monkeypatch.setattr(callbacks.ConvergenceLog, "on_generation", write)
     assert _csv(tmp_path / "cut")["gen"].max() == 23  # complete up to the last finished generation
-    final = app.run(config.load([f"resume={tmp_path / 'cut'}"]), tmp_path / "ignored")
+    final = execute.run(config.load([f"resume={tmp_path / 'cut'}"]), tmp_path / "ignored")
     pd.testing.assert_frame_equal(_csv(tmp_path / "cut"), _csv(tmp_path / "whole"))
     assert final == pd.read_csv(tmp_path / "whole" / "convergence.csv")["best"].iloc[-1]
     assert not (tmp_path / "ignored").exists()
@@ -127,7 +129,7 @@ def test_interrupted_run_resumes_to_the_same_csv(tmp_path, monkeypatch):
 
 def test_killed_process_resumes_to_the_same_csv(tmp_path):
     args = FAST + ["population.generations=1500", "checkpoint_every=25", "progress=false"]
-    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *args, f"hydra.run.dir={tmp_path / 'cut'}"],
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.cli", *args, f"hydra.run.dir={tmp_path / 'cut'}"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     csv = tmp_path / "cut" / "convergence.csv"
     deadline = time.time() + 60
@@ -201,7 +203,7 @@ def test_progress_line_on_a_terminal_is_rewritten_in_place_and_ends_once():
 
     out = Tty()
     cfg = config.load(["problem.n_validation=5", "population.generations=3"])
-    p = app.prepare(cfg, Path("/nonexistent"))
+    p = build.prepare(cfg, Path("/nonexistent"))
     p.algorithm.run(p.task.problem, np.random.default_rng(0), [callbacks.Timing(), callbacks.Progress(stream=out, every_s=0)])
     text = out.getvalue()
     assert text.count("\n") == 1 and text.endswith("\n") and text.count("\r") == 4  # generations 0-3, one line

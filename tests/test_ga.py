@@ -7,9 +7,9 @@ from zrp_ga import config, robots
 from zrp_ga.algorithms import Callback
 from zrp_ga.algorithms.ga import GA
 from zrp_ga.config import ConfigError
-from zrp_ga.layout import Layout
-from zrp_ga.problem import CalibrationProblem
-from zrp_ga.simulation import simulate
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout
+from zrp_ga.model.simulation import simulate
 
 
 @pytest.fixture

@@ -4,12 +4,13 @@ import numpy as np
 import pytest
 from dh_reference import dh_fk
 
-from zrp_ga import kinematics, robots, so3
-from zrp_ga.layout import Layout
-from zrp_ga.problem import CalibrationProblem
-from zrp_ga.robot import ZRPRobot
-from zrp_ga.robot_files import read_dh
-from zrp_ga.simulation import simulate
+from zrp_ga import robots
+from zrp_ga.io.robot_files import read_dh
+from zrp_ga.model import kinematics, so3
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout
+from zrp_ga.model.robot import ZRPRobot
+from zrp_ga.model.simulation import simulate
 
 
 def _table(name):

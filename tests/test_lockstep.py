@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from zrp_ga import config
-from zrp_ga.callbacks import WALL_CLOCK_COLUMNS
 from zrp_ga.operators.base import Streams
 from zrp_ga.run import directory, execute
+from zrp_ga.run.callbacks import WALL_CLOCK_COLUMNS
 from zrp_ga.run.directory import Sweep
 from zrp_ga.run.shared import Cache
 
@@ -161,7 +161,8 @@ def test_calibrate_over_many_seeds_gives_each_seeds_calibration(tmp_path):
     """``zrp_ga.calibrate(seed=[...])`` on measured data evolves the seeds together; each
     calibration is the one ``seed=s`` alone gives, and each run's files go to ``out/seed_S``."""
     import zrp_ga
-    from zrp_ga import kinematics, robots
+    from zrp_ga import robots
+    from zrp_ga.model import kinematics
 
     arm = robots.load("puma560")
     q = np.random.default_rng(1).uniform(-1, 1, (50, 6))
@@ -183,7 +184,7 @@ def test_an_interrupted_batch_continues_to_the_files_of_an_uninterrupted_one(bat
     """Ctrl-C in the middle of a batch: every unfinished run saves its checkpoint and its rows
     up to it and is recorded interrupted; the same jobs run again continue from there to the
     files the uninterrupted batch wrote."""
-    from zrp_ga import callbacks
+    from zrp_ga.run import callbacks
 
     together = batch_and_alone[0]
     original = callbacks.Checkpoint.on_generation

@@ -13,13 +13,17 @@ import yaml
 from scipy.spatial.transform import Rotation
 from urdf_reference import urdf_fk
 
-from zrp_ga import app, config, error_model, kinematics, metrics, registration, robot_files, robots
-from zrp_ga.layout import Layout
-from zrp_ga.measurements import Measurements
-from zrp_ga.problem import CalibrationProblem
+from zrp_ga import config, robots
+from zrp_ga.cli import main as cli_main
+from zrp_ga.io import robot_files
+from zrp_ga.model import error_model, kinematics, metrics, registration
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout
+from zrp_ga.model.poses import Measurements
+from zrp_ga.model.robot import ZRPRobot
+from zrp_ga.model.simulation import random_joints, simulate
 from zrp_ga.problems.measured import gene_half_widths
-from zrp_ga.robot import ZRPRobot
-from zrp_ga.simulation import random_joints, simulate
+from zrp_ga.run import build, execute
 
 NOISE = 5e-5  # m, standard deviation per axis of the simulated tracker
 TOOL = np.array([0.012, -0.02, 0.105])
@@ -63,7 +67,7 @@ def _over(cal, val=None, *more):
 
 
 def _run(tmp_path, over, name="run"):
-    app.run(config.load(over), tmp_path / name)
+    execute.run(config.load(over), tmp_path / name)
     return json.loads((tmp_path / name / "summary.json").read_text())
 
 
@@ -147,7 +151,7 @@ def test_calibration_in_the_instruments_frame_and_the_robot_files_out(tmp_path, 
 
 def test_validation_split_by_fraction(tmp_path, rng):
     cal, _ = _files(tmp_path, rng, _true_arm(rng), n_cal=120)
-    task = app.prepare(config.load(_over(cal, None, "problem.validation_fraction=0.25", "algorithm=lm")), tmp_path / "r").task
+    task = build.prepare(config.load(_over(cal, None, "problem.validation_fraction=0.25", "algorithm=lm")), tmp_path / "r").task
     assert task.problem.data.M == 90 and task.judge.validation.M == 30
     assert sorted(np.r_[task.sets["calibration"].lines, task.sets["validation"].lines]) == list(range(2, 122))
 
@@ -235,7 +239,7 @@ def test_validation_in_another_instrument_frame(tmp_path, rng):
     rigid = _run(tmp_path, _over(cal, val, "algorithm=lm", "problem.validation_registration=rigid"))
     err = rigid["position_error_mm"]["validation"]
     assert err["nominal"]["rms"] > 1.0 and err["calibrated"]["rms"] < 1.5 * NOISE * np.sqrt(3) * 1e3
-    task = app.prepare(config.load(_over(cal, val, "algorithm=lm")), tmp_path / "plain").task
+    task = build.prepare(config.load(_over(cal, val, "algorithm=lm")), tmp_path / "plain").task
     assert task.judge.validation_errors(np.zeros(task.problem.layout.size))[0][0] > 1.0  # metres off without it
 
 
@@ -257,13 +261,13 @@ def test_validation_with_a_known_other_tool_point(tmp_path, rng):
     assert s["problem"]["known_tools"] == {"D": [0.0, 0.0, 0.08]}  # mm in the file's unit -> m
     assert s["position_error_mm"]["validation"]["calibrated"]["rms"] < 2.0 * NOISE * np.sqrt(3) * 1e3
     with pytest.raises(ValueError, match=r"val\.csv, line 2, column 'tool': tool 'D' is neither"):
-        app.prepare(config.load(_over(cal, val, "algorithm=lm")), tmp_path / "unknown")
+        build.prepare(config.load(_over(cal, val, "algorithm=lm")), tmp_path / "unknown")
 
 
 # --- gene ranges from the data, and what is returned ------------------------------------------------
 def test_data_gene_ranges_follow_the_residuals_and_the_axes_levers(tmp_path, rng):
     cal, _ = _files(tmp_path, rng, _true_arm(rng), n_cal=40)
-    task = app.prepare(config.load(_over(cal, None, "algorithm=lm")), tmp_path / "r").task
+    task = build.prepare(config.load(_over(cal, None, "algorithm=lm")), tmp_path / "r").task
     p, reg, c = task.problem, task.registration, config.MeasuredConf(search_scale=5.0)
     e = reg.max
     np.testing.assert_allclose(p.upper[p.layout.blocks["b0"]], 5.0 * e)
@@ -299,7 +303,7 @@ def test_a_result_worse_than_the_nominal_arm_is_not_returned(tmp_path, rng):
     assert set(s["best_genome"].values()) == {0.0}
     assert any("the nominal arm is returned instead" in w for w in s["warnings"])
     model = ZRPRobot.from_yaml(tmp_path / "run" / "calibrated_in_instrument.yaml")
-    task = app.prepare(config.load(_over(cal, val)), tmp_path / "again").task
+    task = build.prepare(config.load(_over(cal, val)), tmp_path / "again").task
     np.testing.assert_allclose(model.b0, task.problem.nominal.b0, atol=1e-15)
 
 
@@ -320,7 +324,7 @@ def test_settings_the_data_cannot_serve(tmp_path, rng, extra, message):
     df[["rx", "ry", "rz"]] = 0.0
     df.to_csv(cal, index=False)
     with pytest.raises(ValueError, match=message):
-        app.prepare(config.load(_over(cal, None, "algorithm=lm", *extra)), tmp_path / "r")
+        build.prepare(config.load(_over(cal, None, "algorithm=lm", *extra)), tmp_path / "r")
 
 
 def test_orientations_with_several_tools_are_refused(tmp_path, rng):
@@ -330,7 +334,7 @@ def test_orientations_with_several_tools_are_refused(tmp_path, rng):
     df.to_csv(cal, index=False)
     over = _over(cal, None, "algorithm=lm", "problem.use_orientation=true", "problem.orientation_convention=rotvec")
     with pytest.raises(ValueError, match="measures 3 tool points; orientations are supported with one tool"):
-        app.prepare(config.load(over), tmp_path / "r")
+        build.prepare(config.load(over), tmp_path / "r")
 
 
 @pytest.mark.parametrize("rows, message", [(1, "a single pose; a calibration of ur10 needs at least 9 measured points "
@@ -342,7 +346,7 @@ def test_too_few_points_say_how_many_are_needed(tmp_path, rng, rows, message):
     cal = tmp_path / "cal.csv"
     _measure(robots.get("ur10"), random_joints(robots.get("ur10"), rows, rng), rng).to_csv(cal, index=False)
     with pytest.raises(ValueError, match=message.replace("(", r"\(")):
-        app.prepare(config.load(_over(cal, None, "problem.length_unit=mm")), tmp_path / "r")
+        build.prepare(config.load(_over(cal, None, "problem.length_unit=mm")), tmp_path / "r")
 
 
 def test_ur10_ipa_is_the_measured_problem_with_its_files_and_robot_wins():
@@ -361,7 +365,7 @@ def _cli(monkeypatch, capsys, args):
     monkeypatch.setattr(sys, "argv", ["zrp-ga", *args])
     monkeypatch.setenv("HYDRA_FULL_ERROR", "0")
     with pytest.raises(SystemExit) as info:
-        app.cli()
+        cli_main.cli()
     GlobalHydra.instance().clear()
     return info.value.code, capsys.readouterr().err.strip().splitlines()
 

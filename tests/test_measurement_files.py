@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from zrp_ga import measurements, robots
-from zrp_ga.measurements import read, zrp_format
+from zrp_ga import robots
+from zrp_ga.core import checks
+from zrp_ga.io import measurements
+from zrp_ga.io.measurements import read, zrp_format
 
 UR10 = robots.get("ur10")
 HEAD = "q1,q2,q3,q4,q5,q6,x,y,z"
@@ -170,8 +172,8 @@ def test_orientation_columns_are_not_read_without_a_stated_convention(tmp_path):
     text = "\n".join([HEAD + ",rx,ry,rz", *[r + ",1,2,nonsense" for r in ROWS]]) + "\n"
     assert read(_file(tmp_path, text), zrp_format(6, "m", "rad"), UR10).R is None
     with pytest.raises(ValueError, match="orientation convention: 'XXY' is neither"):
-        measurements.check_convention("XXY", "orientation convention")
-    measurements.check_convention("ZYZ", "orientation convention")  # proper Euler angles are fine
+        checks.check_convention("XXY", "orientation convention")
+    checks.check_convention("ZYZ", "orientation convention")  # proper Euler angles are fine
 
 
 def test_tool_names_in_the_order_they_first_appear(tmp_path):

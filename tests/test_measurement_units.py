@@ -5,8 +5,9 @@ divided by 1000 by hand (and the shipped UR10 file against its own cells read by
 import numpy as np
 import pandas as pd
 
-from zrp_ga import measurements, robots
-from zrp_ga.measurements import read, zrp_format
+from zrp_ga import robots
+from zrp_ga.io import measurements
+from zrp_ga.io.measurements import read, zrp_format
 
 ROWS_MM = [  # q1..q6 (rad), x, y, z, sx, sy, sz (mm)
     [0, 0, 0, 0, 0, 0, 100, 200, 300, 0.05, 0.06, 0.07],

@@ -166,7 +166,7 @@ def test_cli_refuses_a_deap_operator_without_its_parameters_before_any_work(tmp_
     import subprocess
     import sys
 
-    proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "mutation.op._target_=deap.tools.mutGaussian",
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "mutation.op._target_=deap.tools.mutGaussian",
                            f"hydra.run.dir={tmp_path}/run", "progress=false"], capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
     lines = proc.stderr.strip().splitlines()
     assert proc.returncode == 2, proc.stderr

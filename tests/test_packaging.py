@@ -15,7 +15,8 @@ def test_every_code_package_is_listed_in_pyproject_and_the_configs_ship_whole():
 def test_compiled_code_is_never_cached_inside_the_package():
     import numpy as np
 
-    from zrp_ga import kinematics, robots
+    from zrp_ga import robots
+    from zrp_ga.model import kinematics
     from zrp_ga.operators import reverse_segments
 
     kinematics.forward(robots.get("puma560"), np.zeros((2, 6)))

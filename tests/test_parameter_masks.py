@@ -14,11 +14,13 @@ import numpy as np
 import pytest
 
 import zrp_ga
-from zrp_ga import error_model, kinematics, records, robots, simulation
-from zrp_ga.layout import Layout, mask
-from zrp_ga.measurements import Measurements
+from zrp_ga import robots
+from zrp_ga.io import records
+from zrp_ga.model import error_model, kinematics, simulation
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout, mask
+from zrp_ga.model.poses import Measurements
 from zrp_ga.operators.refine import step
-from zrp_ga.problem import CalibrationProblem
 
 
 def paper_names(n: int, base: bool, hand: bool) -> list[str]:
@@ -194,7 +196,7 @@ def test_canonical_and_best_params_keep_the_fixed_genes():
 
 
 def test_bad_names_are_refused_in_one_line(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem.fixed=[u0_1,b0_9]", f"hydra.run.dir={tmp_path}/run",
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "problem.fixed=[u0_1,b0_9]", f"hydra.run.dir={tmp_path}/run",
                            "progress=false"], capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
     lines = proc.stderr.strip().splitlines()
     assert proc.returncode == 2 and len(lines) == 1, proc.stderr

@@ -1,12 +1,13 @@
 import numpy as np
 import pytest
 
-from zrp_ga import error_model, kinematics, metrics, robots
-from zrp_ga.layout import Layout
-from zrp_ga.measurements import Measurements
+from zrp_ga import robots
+from zrp_ga.model import error_model, kinematics, metrics
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout
+from zrp_ga.model.poses import Measurements
+from zrp_ga.model.simulation import simulate
 from zrp_ga.operators.refine import step
-from zrp_ga.problem import CalibrationProblem
-from zrp_ga.simulation import simulate
 
 
 def _problem(rng, cost="nonlinear", noise=True, n_poses=20, robot="puma560", **kw):
@@ -139,7 +140,7 @@ def test_position_weights_scale_the_position_rows(rng):
         np.testing.assert_allclose(prob.residual(g), rows, atol=1e-15)
 
 
-# --- the Problem protocol: a required part, optional parts declared (zrp_ga.problems.protocol) ---
+# --- the Problem protocol: a required part, optional parts declared (zrp_ga.core.problem) ---
 class Sphere:
     """A problem with the required part only: ranges, names, a vectorised cost (minimum at 0.3)."""
 
@@ -151,11 +152,12 @@ class Sphere:
 
 
 def test_each_problem_kind_has_the_parts_it_declares(rng):
+    from zrp_ga.core import problem as gp
     from zrp_ga.problems import protocol as pp
     from zrp_ga.problems.selection import SelectionProblem
 
     prob, _ = _problem(rng, n_poses=8)
-    parts = (pp.Problem, pp.Sampling, pp.Repairing, pp.GeneBlocks, pp.LeastSquares, pp.Identifiable)
+    parts = (gp.Problem, gp.Sampling, gp.Repairing, gp.GeneBlocks, gp.LeastSquares, pp.Identifiable)
     has = lambda p: [isinstance(p, part) for part in parts]
     assert has(prob) == [True, False, False, True, True, True]
     assert prob.gene_blocks == [(0, 18), (18, 36)]  # the layout's blocks: axes, body vectors

@@ -8,7 +8,7 @@ import sys
 import pytest
 
 from hydra_plugins.zrp_ga_launcher import _progress
-from zrp_ga import callbacks
+from zrp_ga.run import callbacks
 
 
 class Tty(io.StringIO):
@@ -83,7 +83,7 @@ def test_progress_line_time_left_comes_from_the_generations_after_the_first():
 
 
 def test_progress_line_time_left_starts_after_the_last_generation_that_compiled(monkeypatch):
-    from zrp_ga import _numba
+    from zrp_ga.core import compiled as jit_module
 
     class Partway:
         done = 0.1
@@ -95,7 +95,7 @@ def test_progress_line_time_left_starts_after_the_last_generation_that_compiled(
             return True
 
     compiled = [5]
-    monkeypatch.setattr(_numba, "compilations", lambda: compiled[0])
+    monkeypatch.setattr(jit_module, "compilations", lambda: compiled[0])
     out, algorithm = io.StringIO(), Partway()
     progress = callbacks.Progress(stream=out, every_s=0)
     progress.on_generation(algorithm, {"gen": 0, "nevals": 40, "best": 1.0, "wall_s": 10.0})
@@ -108,7 +108,7 @@ def test_progress_line_time_left_starts_after_the_last_generation_that_compiled(
     assert lines[2].endswith("time left   12.0 s")  # 20 % in 4 s, 60 % to go
 
 
-CALL_ONE_KERNEL = "from zrp_ga import _kernels; _kernels._rotate(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0)"
+CALL_ONE_KERNEL = "from zrp_ga.model import _kernels; _kernels._rotate(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0)"
 
 
 def _python(code: str, cache) -> subprocess.CompletedProcess:

@@ -16,10 +16,12 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import zrp_ga
-from zrp_ga import kinematics, measurements, robots
-from zrp_ga.measurements import Measurements
-from zrp_ga.registration import Registration, register
-from zrp_ga.simulation import random_joints
+from zrp_ga import robots
+from zrp_ga.io import measurements
+from zrp_ga.model import kinematics
+from zrp_ga.model.poses import Measurements
+from zrp_ga.model.registration import Registration, register
+from zrp_ga.model.simulation import random_joints
 
 R_TRUE = Rotation.from_rotvec([0.4, -0.9, 1.7]).as_matrix()
 T_TRUE = np.array([1.2, -2.5, 0.3])

@@ -14,7 +14,8 @@ import pytest
 from scipy import stats
 
 from zrp_ga import report
-from zrp_ga.hydra_callbacks import MANIFEST, read_manifest
+from zrp_ga.cli import report as report_cli
+from zrp_ga.run.directory import MANIFEST, read_manifest
 
 CROSSOVERS = ["blend", "sbx", "two_point"]
 
@@ -23,7 +24,7 @@ CROSSOVERS = ["blend", "sbx", "two_point"]
 def sweep(tmp_path_factory):
     where = tmp_path_factory.mktemp("sweep") / "sweep"
     proc = subprocess.run(
-        [sys.executable, "-m", "zrp_ga.app", "-m", f"crossover={','.join(CROSSOVERS)}", "seed=0,1,2",
+        [sys.executable, "-m", "zrp_ga.cli", "-m", f"crossover={','.join(CROSSOVERS)}", "seed=0,1,2",
          "problem=multipose", "problem.n_poses=6", "problem.n_validation=5", "refine=none", "population.mu=10",
          "population.lambda_=10", "population.generations=6", f"hydra.sweep.dir={where}"],
         capture_output=True, text=True)  # fmt: skip
@@ -164,7 +165,7 @@ def test_partial_sweep_reports_what_it_left_out(sweep, tmp_path, capsys):
     with open(partial / MANIFEST, "a") as f:
         f.write(json.dumps({**failed.to_dict(), "status": "failed", "error": "ValueError: made to fail"}) + "\n")
         f.write(json.dumps({**running.to_dict(), "status": "running", "error": None}) + "\n")
-    report.main([str(partial), "--out", str(tmp_path / "r"), "--formats", "none"])
+    report_cli.main([str(partial), "--out", str(tmp_path / "r"), "--formats", "none"])
     printed = capsys.readouterr().out
     assert printed.startswith("7 runs of 3 configurations on 3 instance(s)")
     assert f"left out {partial / str(failed.dir)}: failed: ValueError: made to fail" in printed
@@ -181,7 +182,7 @@ def test_a_job_read_alone_takes_its_settings_from_hydra(sweep):
 
 def test_nothing_to_report_is_one_clear_line(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_:
-        report.main([str(tmp_path)])
+        report_cli.main([str(tmp_path)])
     assert exit_.value.code == 2 and capsys.readouterr().err.startswith("zrp-ga-report: error: no finished run under")
     assert list(tmp_path.iterdir()) == []
 

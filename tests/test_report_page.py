@@ -6,11 +6,11 @@ import copy
 import os
 import re
 
+import browser
 import pytest
 from report_fakes import ALGORITHMS, fake_run
 
 from zrp_ga import report
-from zrp_ga.report import browser
 
 CHROMIUM = browser.find_browser()
 if CHROMIUM is None and os.environ.get("CI"):

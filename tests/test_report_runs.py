@@ -11,9 +11,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from zrp_ga import app, config, kinematics, report, robots
+from zrp_ga import config, report, robots
+from zrp_ga.cli import report as report_cli
 from zrp_ga.algorithms.ga import GA
-from zrp_ga.simulation import random_joints
+from zrp_ga.model import kinematics
+from zrp_ga.model.simulation import random_joints
+from zrp_ga.run import execute
 
 FINISHED = ["paper-ga", "paper-lm", "paper-cmaes", "multipose-ga", "measured-ga", "measured-lm-no-validation"]
 SMALL_GA = ["population.mu=10", "population.lambda_=10", "population.generations=3"]
@@ -31,7 +34,7 @@ def _measured_file(path, n, rng):
 
 
 def _run(where, *overrides):
-    app.run(config.load([*overrides, "progress=false", "problem.n_validation=5"] if "problem=measured" not in overrides
+    execute.run(config.load([*overrides, "progress=false", "problem.n_validation=5"] if "problem=measured" not in overrides
                         else [*overrides, "progress=false"]), where)  # fmt: skip
 
 
@@ -74,7 +77,7 @@ def kinds(tmp_path_factory):
 
 
 def test_every_kind_of_run_is_reported_or_named_as_left_out(kinds, tmp_path, capsys):
-    report.main([str(kinds), "--out", str(tmp_path / "r"), "--formats", "png"])
+    report_cli.main([str(kinds), "--out", str(tmp_path / "r"), "--formats", "png"])
     printed = capsys.readouterr().out
     assert printed.startswith(f"{len(FINISHED)} runs of ")
     assert f"left out {kinds / 'failed'}: failed: ValueError('made to fail')" in printed
@@ -183,12 +186,12 @@ def test_bad_paths_are_one_line_errors_and_nothing_is_written(kinds, tmp_path, c
         ((kinds / "paper-lm", "--out", out, "--formats", "png,jpgx"), "--formats: jpgx is not a figure format"),
     ]:  # fmt: skip
         with pytest.raises(SystemExit) as exit_:
-            report.main([str(a) for a in args])
+            report_cli.main([str(a) for a in args])
         printed = capsys.readouterr()
         assert exit_.value.code == 2 and printed.out == "", args
         assert printed.err.startswith("zrp-ga-report: error: ") and message in printed.err and printed.err.count("\n") == 1, printed.err
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
-    proc = subprocess.run([sys.executable, "-m", "zrp_ga.report", str(tmp_path / "missing")], capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli.report", str(tmp_path / "missing")], capture_output=True, text=True)
     assert proc.returncode == 2 and proc.stderr == f"zrp-ga-report: error: {tmp_path / 'missing'}: no such directory\n"
 
 

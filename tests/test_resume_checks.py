@@ -9,11 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from zrp_ga import app, callbacks, checkpoint, config
-from zrp_ga.callbacks import WALL_CLOCK_COLUMNS
+from zrp_ga import config
 from zrp_ga.config import ConfigError
-from zrp_ga.run import directory
+from zrp_ga.run import callbacks, checkpoint, directory, execute
 from zrp_ga.run.build import prepare
+from zrp_ga.run.callbacks import WALL_CLOCK_COLUMNS
 
 FAST = ["problem=multipose", "problem.n_poses=10", "problem.n_validation=10", "refine=none", "population.mu=20",
         "population.lambda_=20", "seed=4", "progress=false"]  # fmt: skip
@@ -36,7 +36,7 @@ def _interrupted(cfg, out, monkeypatch):
     with monkeypatch.context() as m:
         m.setattr(callbacks.ConvergenceLog, "on_generation", ctrl_c)
         with pytest.raises(KeyboardInterrupt):
-            app.run(cfg, out)
+            execute.run(cfg, out)
     return out
 
 
@@ -55,7 +55,7 @@ def test_resume_refuses_a_robot_file_changed_since_the_checkpoint(tmp_path, arm_
     before = (out / "convergence.csv").read_text()
     arm_file.write_text(arm_file.read_text().replace("a: 0.4318, alpha: 0", "a: 0.5000, alpha: 0"))
     with pytest.raises(ConfigError, match=r"resume: the robot changed since the checkpoint in .*cut"):
-        app.run(config.load([f"resume={out}"]), tmp_path / "ignored")
+        execute.run(config.load([f"resume={out}"]), tmp_path / "ignored")
     assert (out / "convergence.csv").read_text() == before  # nothing appended from another arm
 
 
@@ -69,7 +69,7 @@ def test_resume_refuses_a_data_file_changed_since_the_checkpoint(tmp_path, monke
     state["inputs"]["problem.calibration_file"] = "0" * 64
     checkpoint.save(out / directory.CHECKPOINT, state)
     with pytest.raises(ConfigError, match=r"resume: problem.calibration_file \(None\) changed since the checkpoint"):
-        app.run(config.load([f"resume={out}"]), tmp_path / "ignored")
+        execute.run(config.load([f"resume={out}"]), tmp_path / "ignored")
 
 
 def test_resume_refuses_a_checkpoint_config_the_schema_refuses(tmp_path, monkeypatch):
@@ -79,7 +79,7 @@ def test_resume_refuses_a_checkpoint_config_the_schema_refuses(tmp_path, monkeyp
     state["config"]["checkpoint_every"] = "often"
     checkpoint.save(out / directory.CHECKPOINT, state)
     with pytest.raises(ConfigError, match=r"resume: the checkpoint's config is not valid at checkpoint_every"):
-        app.run(config.load([f"resume={out}"]), tmp_path / "ignored")
+        execute.run(config.load([f"resume={out}"]), tmp_path / "ignored")
 
 
 def test_resume_applies_the_checkpoints_config(tmp_path, monkeypatch):
@@ -87,7 +87,7 @@ def test_resume_applies_the_checkpoints_config(tmp_path, monkeypatch):
     generations, and its summary.json records what ran."""
     cfg = config.load([*FAST, "population.generations=9", "checkpoint_every=2"])
     out = _interrupted(cfg, tmp_path / "cut", monkeypatch)
-    app.run(config.load([f"resume={out}"]), tmp_path / "ignored")
+    execute.run(config.load([f"resume={out}"]), tmp_path / "ignored")
     assert _csv(out)["gen"].max() == 9
     assert directory.read_summary(out)["config"]["population"]["generations"] == 9
 
@@ -97,7 +97,7 @@ def test_a_resumed_run_continues_from_a_changed_population(tmp_path, monkeypatch
     simulation): the first resumed generation reports the truth's cost or less (the GA keeps its
     best), far below what the uninterrupted run reaches then. A run started over could not."""
     cfg = config.load([*FAST, "population.generations=10", "checkpoint_every=2"])
-    app.run(cfg, tmp_path / "whole")
+    execute.run(cfg, tmp_path / "whole")
     out = _interrupted(cfg, tmp_path / "cut", monkeypatch)
     task = prepare(cfg, None).task
     truth = np.asarray(task.truth, dtype=float)
@@ -107,7 +107,7 @@ def test_a_resumed_run_continues_from_a_changed_population(tmp_path, monkeypatch
     state["pop"] = np.repeat(truth[None], len(state["pop"]), axis=0)
     state["costs"] = np.full(len(state["pop"]), cost)
     checkpoint.save(out / directory.CHECKPOINT, state)
-    app.run(config.load([f"resume={out}"]), tmp_path / "ignored")
+    execute.run(config.load([f"resume={out}"]), tmp_path / "ignored")
     resumed, whole = _csv(out), _csv(tmp_path / "whole")
     pd.testing.assert_frame_equal(resumed[resumed.gen <= cut], whole[whole.gen <= cut])
     after = resumed[resumed.gen == cut + 1]["best"].iloc[0]
@@ -119,13 +119,13 @@ def test_a_resumed_run_continues_from_the_checkpoints_random_state(tmp_path, mon
     """The checkpoint's random state replaced by another seed's: the resumed generations differ
     from the uninterrupted run's (which a run started over would reproduce exactly)."""
     cfg = config.load([*FAST, "population.generations=10", "checkpoint_every=2"])
-    app.run(cfg, tmp_path / "whole")
+    execute.run(cfg, tmp_path / "whole")
     out = _interrupted(cfg, tmp_path / "cut", monkeypatch)
     state = checkpoint.load(out / directory.CHECKPOINT)
     cut = int(state["gen"])
     state["rng"] = np.random.default_rng(12345).bit_generator.state
     checkpoint.save(out / directory.CHECKPOINT, state)
-    app.run(config.load([f"resume={out}"]), tmp_path / "ignored")
+    execute.run(config.load([f"resume={out}"]), tmp_path / "ignored")
     resumed, whole = _csv(out), _csv(tmp_path / "whole")
     pd.testing.assert_frame_equal(resumed[resumed.gen <= cut], whole[whole.gen <= cut])
     assert not np.array_equal(resumed[resumed.gen > cut]["mean"], whole[whole.gen > cut]["mean"])

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from zrp_ga import robots
-from zrp_ga.robot import ZRPRobot
+from zrp_ga.model.robot import ZRPRobot
 
 GOOD = dict(u0=[[0, 0, 1], [0, 1, 0]], b0=[[0, 0, 0.3], [0.2, 0, 0], [0.1, 0, 0]])
 

@@ -10,9 +10,10 @@ import yaml
 from dh_reference import dh_fk
 from scipy.spatial.transform import Rotation
 
-from zrp_ga import kinematics, robots
-from zrp_ga.robot import ZRPRobot
-from zrp_ga.robot_files import dh_to_yaml, read_dh, read_robot, to_dh, to_urdf, write_robot_files
+from zrp_ga import robots
+from zrp_ga.io.robot_files import dh_to_yaml, read_dh, read_robot, to_dh, to_urdf, write_robot_files
+from zrp_ga.model import kinematics
+from zrp_ga.model.robot import ZRPRobot
 
 
 def random_table(rng, types):

@@ -10,8 +10,10 @@ import numpy as np
 import pytest
 import yaml
 
-from zrp_ga import dh, robot_files, robots, so3, urdf
-from zrp_ga.robot import ZRPRobot
+from zrp_ga import robots
+from zrp_ga.io import robot_files, urdf
+from zrp_ga.model import dh, so3
+from zrp_ga.model.robot import ZRPRobot
 
 NAMES = ["a", "joint_1", "x-y", "a.b", "yes", "1.5", "on", "null", "b c", "caf\u00e9", "[x]", "#c", "- d",
          "very_long_name_" * 6]  # fmt: skip
@@ -57,7 +59,7 @@ def test_the_yaml_of_the_robot_files_is_what_pyyaml_writes():
 
 
 def _element_tree_urdf(robot: ZRPRobot, base, tool) -> str:
-    """The new URDF of the exact mapping (zrp_ga.urdf's docstring) built with ElementTree."""
+    """The new URDF of the exact mapping (zrp_ga.io.urdf's docstring) built with ElementTree."""
     names = robot.joint_names or tuple(f"joint_{i + 1}" for i in range(robot.n))
     root = ET.Element("robot", name=robot.name)
 
@@ -124,7 +126,7 @@ def _factor(axis: str, value: float) -> np.ndarray:
 @pytest.mark.parametrize("convention", ["dh", "mdh"])
 def test_the_forward_kinematics_of_a_table_is_the_product_of_its_link_matrices_to_the_last_bit(convention):
     """What to_dh's mismatch rests on: the same products in the same order as the chain of the
-    convention's factor matrices (module docstring of zrp_ga.dh), Hayati rows and prismatic joints too."""
+    convention's factor matrices (module docstring of zrp_ga.model.dh), Hayati rows and prismatic joints too."""
     rng = np.random.default_rng(6)
     for trial in range(40):
         n = int(rng.integers(1, 7))

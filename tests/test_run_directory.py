@@ -9,9 +9,9 @@ import os
 import numpy as np
 import pytest
 
-from zrp_ga import app, checkpoint, config
+from zrp_ga import config
 from zrp_ga.config import ConfigError
-from zrp_ga.run import directory
+from zrp_ga.run import checkpoint, directory, execute
 
 FAST = ["problem=multipose", "problem.n_poses=10", "problem.n_validation=10", "refine=none", "population.mu=20",
         "population.lambda_=20", "seed=4", "progress=false"]  # fmt: skip
@@ -24,9 +24,9 @@ def test_a_second_run_into_a_directory_in_use_is_refused(tmp_path):
     out.mkdir()
     with directory.locked(out):
         with pytest.raises(ConfigError, match=rf"{out}: another run \(process {os.getpid()}\) is writing"):
-            app.run(config.load([*FAST, "population.generations=2"]), out)
+            execute.run(config.load([*FAST, "population.generations=2"]), out)
         assert not (out / "status.json").exists() and not (out / "convergence.csv").exists()
-    app.run(config.load([*FAST, "population.generations=2"]), out)  # released: the run goes ahead
+    execute.run(config.load([*FAST, "population.generations=2"]), out)  # released: the run goes ahead
     assert directory.status(out) == "done"
 
 
@@ -37,7 +37,7 @@ def test_a_full_disk_while_writing_the_checkpoint_ends_failed_naming_it(tmp_path
     monkeypatch.setattr(np, "savez", full)
     out = tmp_path / "run"
     with pytest.raises(OSError, match=r"No space left on device: .*checkpoint\.npz"):
-        app.run(config.load([*FAST, "population.generations=4", "checkpoint_every=2"]), out)
+        execute.run(config.load([*FAST, "population.generations=4", "checkpoint_every=2"]), out)
     st = json.loads((out / "status.json").read_text())
     assert st["status"] == "failed" and "checkpoint.npz" in st["error"] and "No space left" in st["error"]
     assert [p.name for p in out.iterdir() if p.name.endswith(".tmp")] == []
@@ -55,12 +55,12 @@ def test_a_checkpoint_write_that_fails_leaves_the_previous_one_and_no_temporary_
 
 def test_the_temporary_files_of_a_killed_run_are_removed_when_it_resumes(tmp_path):
     out = tmp_path / "run"
-    app.run(config.load([*FAST, "population.generations=4", "checkpoint_every=2"]), out)
+    execute.run(config.load([*FAST, "population.generations=4", "checkpoint_every=2"]), out)
     stale = out / f".checkpoint.npz.{os.getpid() + 1}.tmp"  # what a kill inside a checkpoint write leaves
     stale.write_bytes(b"half a checkpoint")
     (out / "summary.json").unlink()  # as killed before the end
     directory.write_status(out, "interrupted")
-    app.run(config.load([f"resume={out}"]), tmp_path / "ignored")
+    execute.run(config.load([f"resume={out}"]), tmp_path / "ignored")
     assert not stale.exists() and directory.status(out) == "done"
 
 
@@ -89,7 +89,7 @@ def test_resume_on_the_command_line_leaves_no_stray_output_directory(tmp_path):
 
     run, here = tmp_path / "run", tmp_path / "here"
     here.mkdir()
-    args = [sys.executable, "-m", "zrp_ga.app"]
+    args = [sys.executable, "-m", "zrp_ga.cli"]
     first = subprocess.run([*args, *FAST, "population.generations=3", f"hydra.run.dir={run}"], cwd=here,
                            capture_output=True, text=True)  # fmt: skip
     assert first.returncode == 0, first.stderr

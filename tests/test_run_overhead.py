@@ -13,7 +13,10 @@ import pytest
 import yaml
 from omegaconf import OmegaConf
 
-from zrp_ga import config, dh, fileio, records, robot_files, robots
+from zrp_ga import config, robots
+from zrp_ga.core import fileio
+from zrp_ga.io import records, robot_files
+from zrp_ga.model import dh
 from zrp_ga.run.build import instance_key, task_config
 
 CONFIGS = [[], ["experiment=operator_grid", "hydra.mode=RUN"], ["experiment=methods_baselines", "hydra.mode=RUN"],
@@ -148,5 +151,5 @@ def test_the_robot_files_report_each_tables_own_mismatch(tmp_path):
     for convention, title in (("dh", "Standard DH"), ("mdh", "Modified DH")):
         table, want = dh.to_dh(arm, convention)
         assert mismatch[convention] == want
-        header = f"{title} table of {arm.name} (zrp_ga.robot_files.to_dh): {want}"
+        header = f"{title} table of {arm.name} (zrp_ga.io.robot_files.to_dh): {want}"
         assert paths[convention].read_text() == robot_files.dh_to_yaml(table, comment="\n".join([header, *want.notes]))

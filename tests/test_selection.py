@@ -10,18 +10,20 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from zrp_ga import app, config, robots
+from zrp_ga import config, robots
 from zrp_ga.algorithms import Callback
 from zrp_ga.algorithms.exchange import Exchange
 from zrp_ga.algorithms.ga import GA
 from zrp_ga.algorithms.random_search import RandomSearch
 from zrp_ga.config import ConfigError, Index
-from zrp_ga.layout import Layout
+from zrp_ga.core.errors import one_line
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout
+from zrp_ga.model.robot import ZRPRobot
+from zrp_ga.model.simulation import measure, true_robot
 from zrp_ga.operators import inversion, rotation, subset
-from zrp_ga.problem import CalibrationProblem
 from zrp_ga.problems.selection import SelectionProblem, joints_within_limits
-from zrp_ga.robot import ZRPRobot
-from zrp_ga.simulation import measure, true_robot
+from zrp_ga.run import build, execute
 
 
 def _calibration(arm, M=40, position_only=False, seed=0, base=False):
@@ -275,19 +277,19 @@ def test_a_selection_run_writes_the_files_and_judges_its_poses_by_calibrating_on
     over = ["experiment=pose_selection", "problem.k=8", "problem.n_candidates=60", "problem.n_validation=40",
             "population.max_evals=400", "population.mu=20", "population.lambda_=20", "progress=false"]  # fmt: skip
     cfg = config.load(over)
-    app.run(cfg, tmp_path)
+    execute.run(cfg, tmp_path)
     s = json.loads((tmp_path / "summary.json").read_text())
     for f in ("convergence.csv", "best_params.csv", "initial_population.csv", "selected_poses.csv", "calibrated_robot.yaml"):
         assert (tmp_path / f).exists(), f
     poses = s["selection"]["poses"]
     assert len(set(poses)) == 8 and s["best_genome"] == {f"pose_{j + 1}": p for j, p in enumerate(poses)}
     # independently: least squares on the chosen rows of the same simulated instance
-    task = app.prepare(config.load(over), tmp_path / "again").task
+    task = build.prepare(config.load(over), tmp_path / "again").task
     cal = task.problem.calibration
     sub = CalibrationProblem(cal.nominal, cal.data.subset(np.array(poses)), cal.layout, cal.lower, cal.upper, cost="nonlinear")
     x = least_squares(sub.residual, np.zeros(36), jac=lambda v: -sub.jacobian(v), method="lm", ftol=1e-15, xtol=1e-15,
                       gtol=1e-15).x  # converged fully, as LM is run
-    from zrp_ga import metrics
+    from zrp_ga.model import metrics
 
     val = task.calibrate_on(np.array(poses)).judge.validation
     err = metrics.position_errors(cal.layout, cal.nominal, x, val)
@@ -304,8 +306,8 @@ def test_a_selection_run_writes_the_files_and_judges_its_poses_by_calibrating_on
 ])  # fmt: skip
 def test_bad_selection_settings_are_one_line_naming_the_key(tmp_path, override, expected):
     with pytest.raises(Exception) as info:
-        app.prepare(config.load(["experiment=pose_selection", override]), tmp_path / "run")
-    assert expected in app.one_line(info.value)
+        build.prepare(config.load(["experiment=pose_selection", override]), tmp_path / "run")
+    assert expected in one_line(info.value)
 
 
 def test_a_measured_subset_too_small_to_calibrate_fully_is_still_judged(tmp_path):
@@ -314,7 +316,7 @@ def test_a_measured_subset_too_small_to_calibrate_fully_is_still_judged(tmp_path
     and says how many directions they identify."""
     over = ["experiment=pose_selection", "problem=ur10_selection", "problem.k=8", "problem.reference=false",
             "population.max_evals=200", "population.mu=20", "population.lambda_=20", "progress=false"]  # fmt: skip
-    app.run(config.load(over), tmp_path)
+    execute.run(config.load(over), tmp_path)
     s = json.loads((tmp_path / "summary.json").read_text())
     assert np.isfinite(s["validation_rms_mm"]["calibrated"])
     assert any("choose more" in w for w in s["warnings"])

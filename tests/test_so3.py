@@ -1,7 +1,7 @@
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from zrp_ga import so3
+from zrp_ga.model import so3
 
 
 def test_rodrigues_matches_scipy(rng):

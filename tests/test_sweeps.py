@@ -28,8 +28,8 @@ import pandas as pd
 import pytest
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
-from zrp_ga.callbacks import WALL_CLOCK_COLUMNS
-from zrp_ga.run import directory
+from zrp_ga.run import directory, execute
+from zrp_ga.run.callbacks import WALL_CLOCK_COLUMNS
 from zrp_ga.run.directory import read_manifest
 
 
@@ -112,7 +112,7 @@ SMALL = ["problem=multipose", "problem.n_poses=10", "problem.n_validation=10", "
 
 
 def _zrp_ga(*args, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "zrp_ga.app", *args], capture_output=True, text=True, **kw)
+    return subprocess.run([sys.executable, "-m", "zrp_ga.cli", *args], capture_output=True, text=True, **kw)
 
 
 def _runs(sweep: Path) -> dict[str, pd.DataFrame]:
@@ -177,12 +177,12 @@ def _log_lines(run: Path) -> list[str]:
 def test_sweep_jobs_equal_single_runs_built_afresh(tmp_path, ours):
     """A sweep's workers reuse problem instances and their diagnostics (kept beside the sweep):
     each job's files against a single run of its config, built from nothing in this process."""
-    from zrp_ga import app, config
+    from zrp_ga import config
 
     m = read_manifest(ours)
     for overrides, d in zip(m["overrides"], m["dir"]):
         single = tmp_path / str(d)
-        app.run(config.load(overrides.split()), single)
+        execute.run(config.load(overrides.split()), single)
         pd.testing.assert_frame_equal(pd.read_csv(ours / str(d) / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS),
                                       pd.read_csv(single / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS))  # fmt: skip
         swept, alone = (json.loads((x / "summary.json").read_text()) for x in (ours / str(d), single))
@@ -245,7 +245,7 @@ def uninterrupted(tmp_path_factory) -> Path:
 def _kill_at_random(sweep: Path, sig: int, rng: random.Random) -> subprocess.Popen:
     """Start the sweep and send ``sig`` to all its processes (its own session) once a random
     number of generations has been logged over its jobs, plus a random delay."""
-    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *KILLABLE, f"hydra.sweep.dir={sweep}"],
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.cli", *KILLABLE, f"hydra.sweep.dir={sweep}"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)  # fmt: skip
     target, deadline = rng.randrange(1, N_KILLABLE * 151), time.time() + 120
     while proc.poll() is None and time.time() < deadline:
@@ -301,7 +301,7 @@ def test_a_worker_that_dies_fails_its_jobs_and_the_sweep_goes_on(tmp_path, unint
     """One worker process killed (as by the out-of-memory killer): its jobs are failed and
     recorded, another worker runs the rest; the same command then completes the sweep."""
     sweep = tmp_path / "sweep"
-    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.app", *KILLABLE, f"hydra.sweep.dir={sweep}"],
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.cli", *KILLABLE, f"hydra.sweep.dir={sweep}"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)  # fmt: skip
     deadline = time.time() + 120
     while time.time() < deadline and not any(p.stat().st_size > 2000 for p in sweep.glob("*/convergence.csv")):
@@ -344,10 +344,10 @@ def test_a_suite_sweep_composes_once_per_instance_not_per_job(hydra_loader):
 # --- jobs run together --------------------------------------------------------------------------------
 def _single_run_equal(sweep: Path, d: str, overrides: str, tmp_path: Path) -> None:
     """The job in ``sweep / d`` against a single run of its config, built afresh in this process."""
-    from zrp_ga import app, config
+    from zrp_ga import config
 
     single = tmp_path / f"single-{d}"
-    app.run(config.load(overrides.split()), single)
+    execute.run(config.load(overrides.split()), single)
     pd.testing.assert_frame_equal(pd.read_csv(sweep / d / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS),
                                   pd.read_csv(single / "convergence.csv").drop(columns=WALL_CLOCK_COLUMNS), obj=overrides)  # fmt: skip
     swept, alone = (json.loads((x / "summary.json").read_text()) for x in (sweep / d, single))
@@ -412,14 +412,15 @@ def test_the_driver_groups_jobs_by_batch_key(hydra_loader, tmp_path):
     from hydra.types import HydraContext, RunMode
 
     from hydra_plugins.zrp_ga_launcher import _compose, _workers
-    from zrp_ga import cli, config
+    from zrp_ga import config
+    from zrp_ga.cli import main as cli_main
     from zrp_ga.run import execute
 
     master = hydra_loader.load_configuration("config", ["hydra.mode=MULTIRUN", f"hydra.sweep.dir={tmp_path}"], RunMode.MULTIRUN)
     jobs = [[f"algorithm={a}", f"crossover={c}", f"seed={s}"] for a in ("ga", "lm") for c in ("sbx", "blend") for s in range(12)]
     launcher = types.SimpleNamespace(config=master, settings=config.ZrpGaLauncherConf(),
                                      hydra_context=HydraContext(config_loader=_compose.ComposingLoader.wrap(hydra_loader), callbacks=None),
-                                     task_function=cli.main.__wrapped__)  # fmt: skip
+                                     task_function=cli_main.main.__wrapped__)  # fmt: skip
     pool = types.SimpleNamespace(workers=[None, None])
     dispatcher = _workers._Dispatcher(launcher, pool, collections.deque(enumerate(jobs)), tmp_path)
     assert dispatcher.size == _workers.MIN_BATCH == 8  # 48 jobs, 2 workers, 3 rounds: 8
@@ -453,7 +454,8 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
     from hydra.types import HydraContext, RunMode
 
     from hydra_plugins.zrp_ga_launcher import _compose, _workers
-    from zrp_ga import cli, config
+    from zrp_ga import config
+    from zrp_ga.cli import main as cli_main
     from zrp_ga.run import execute
 
     master = hydra_loader.load_configuration("config", ["hydra.mode=MULTIRUN", f"hydra.sweep.dir={tmp_path}"], RunMode.MULTIRUN)
@@ -470,7 +472,7 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
             assert 0 < len(loader._pickled) < len(jobs) and not loader._asked
         launcher = types.SimpleNamespace(config=master, settings=config.ZrpGaLauncherConf(),
                                          hydra_context=HydraContext(config_loader=loader, callbacks=None),
-                                         task_function=cli.main.__wrapped__)  # fmt: skip
+                                         task_function=cli_main.main.__wrapped__)  # fmt: skip
         dispatcher = _workers._Dispatcher(launcher, types.SimpleNamespace(workers=[None, None]),
                                           collections.deque(enumerate(jobs)), tmp_path)  # fmt: skip
         dispatcher.limit = 4  # composed ahead at most: fewer than a key's jobs lie apart
@@ -523,7 +525,8 @@ from hydra.core.global_hydra import GlobalHydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.utils import run_job
 from hydra.types import HydraContext, RunMode
-from zrp_ga import cli, config
+from zrp_ga.cli import main as cli_main
+from zrp_ga import config
 from hydra_plugins.zrp_ga_launcher import _batch
 
 calls = []
@@ -546,8 +549,8 @@ with initialize_config_module("zrp_ga.conf", **config.hydra_options()):
     configs = [(k, loader.load_sweep_config(ours, o)) for k, o in enumerate(jobs)]
     alone = loader.load_sweep_config(theirs, jobs[0])
 context = HydraContext(config_loader=None, callbacks=Recorder())
-returns = _batch.run_batch(configs, context, cli.main.__wrapped__)
-with_hydra = run_job(hydra_context=context, task_function=cli.main.__wrapped__, config=_batch._numbered(alone, 0),
+returns = _batch.run_batch(configs, context, cli_main.main.__wrapped__)
+with_hydra = run_job(hydra_context=context, task_function=cli_main.main.__wrapped__, config=_batch._numbered(alone, 0),
                      job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
 print(json.dumps({"calls": calls, "returns": [[r.status.name, r.overrides, repr(r._return_value), r.task_name, r.working_dir]
                                               for r in returns], "run_job": with_hydra.status.name}))

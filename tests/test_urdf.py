@@ -11,9 +11,10 @@ from lxml import etree
 from scipy.spatial.transform import Rotation
 from urdf_reference import urdf_fk
 
-from zrp_ga import kinematics, robots
-from zrp_ga.robot import ZRPRobot
-from zrp_ga.robot_files import read_robot, to_urdf, write_robot_files
+from zrp_ga import robots
+from zrp_ga.io.robot_files import read_robot, to_urdf, write_robot_files
+from zrp_ga.model import kinematics
+from zrp_ga.model.robot import ZRPRobot
 
 KR6 = Path(__file__).parent / "data" / "kr6_meshes.urdf"  # meshes, inertias, flange, tool0, a gripper
 KR6_JOINTS = [f"joint_a{i}" for i in range(1, 7)]

@@ -7,7 +7,7 @@
 - validation worse than nominal: calibration points of the nominal arm itself, few and noisy, so
   that the calibrated model fits their noise and predicts new points worse than the nominal arm;
   the warning gives both RMS values, and the optimiser's result is kept (the nominal arm is
-  returned only when the calibration data are fitted worse, ``zrp_ga.summary``);
+  returned only when the calibration data are fitted worse, ``zrp_ga.run.summary``);
 - registration far off: a joint's zero position wrong in the file; the warning names the worst
   line and the 2% of the reach;
 - the optimiser diverged: a result without a finite cost gives the warning and the nominal arm.
@@ -25,12 +25,14 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 import zrp_ga
-from zrp_ga import kinematics, robots, summary
+from zrp_ga import robots
 from zrp_ga.algorithms import Result
-from zrp_ga.layout import Layout
-from zrp_ga.measurements import Measurements
-from zrp_ga.problem import CalibrationProblem
-from zrp_ga.simulation import random_joints, true_robot
+from zrp_ga.model import kinematics
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout
+from zrp_ga.model.poses import Measurements
+from zrp_ga.model.simulation import random_joints, true_robot
+from zrp_ga.run import summary
 
 FRAME = (Rotation.from_rotvec([-0.5, 0.8, 2.2]).as_matrix(), np.array([2.1, 0.4, -0.7]))
 TOOL = np.array([0.015, 0.03, 0.08])
@@ -145,7 +147,7 @@ def test_registration_far_off_on_the_command_line(tmp_path):
     arm = robots.get("ur10")
     path, wrong, P = _far_off_file(tmp_path)
     run = tmp_path / "run"
-    proc = subprocess.run([sys.executable, "-m", "zrp_ga.app", "problem=measured", "robot=ur10", f"problem.calibration_file={path}",
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "problem=measured", "robot=ur10", f"problem.calibration_file={path}",
                            "algorithm=lm", "progress=false", f"hydra.run.dir={run}"], capture_output=True, text=True)  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-2000:]
     expected = _far_warning(arm, wrong, P)

@@ -21,11 +21,11 @@ def __getattr__(name: str) -> Any:
 
         return calibrate
     if name == "ZrpGaWarning":  # the class of every warning zrp_ga gives inside the API
-        from zrp_ga.errors import ZrpGaWarning
+        from zrp_ga.core.errors import ZrpGaWarning
 
         return ZrpGaWarning
     if name == "compensate":  # zrp_ga.compensation: a calibration turned into a corrected program
-        return __import__("zrp_ga.compensation", fromlist=["compensate"]).compensate
+        return __import__("zrp_ga.compensation.compensate", fromlist=["compensate"]).compensate
     raise AttributeError(f"module 'zrp_ga' has no attribute {name!r}")
 
 

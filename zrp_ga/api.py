@@ -23,11 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from zrp_ga import config, errors
+from zrp_ga import config
 from zrp_ga.algorithms import Result
-from zrp_ga.measurements import Measurements
+from zrp_ga.core import errors
+from zrp_ga.model.poses import Measurements
+from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.problems import Task
-from zrp_ga.robot import ZRPRobot
 
 
 @dataclasses.dataclass
@@ -126,7 +127,7 @@ def calibrate(
     ``tool``), a tuple ``(q, positions[, orientations])`` of arrays ((M, n), (M, 3), and (M, 3)
     angles or (M, 3, 3) rotation matrices), a dict of such arrays (keys ``q``, ``positions``,
     ``orientations``, ``std``, ``tool``) or of columns, or
-    :class:`~zrp_ga.measurements.Measurements`. In-memory numbers get the checks a file gets
+    :class:`~zrp_ga.model.poses.Measurements`. In-memory numbers get the checks a file gets
     (one ValueError naming the row, counted from 0, and the column) and are in the units of
     ``problem={"length_unit": ..., "angle_unit": ...}``: ``auto`` (the default) detects metres or
     millimetres, radians or degrees, and converts.
@@ -144,8 +145,9 @@ def calibrate(
     each run writes into ``out/seed_S``.
 
     >>> import numpy as np, zrp_ga
-    >>> from zrp_ga import kinematics, robots
-    >>> arm = robots.load("puma560")
+    >>> from zrp_ga.io import presets
+    >>> from zrp_ga.model import kinematics
+    >>> arm = presets.load("puma560")
     >>> q = np.random.default_rng(1).uniform(-1, 1, (40, 6))
     >>> p = kinematics.forward(arm, q)[1]  # a perfect arm, in mm and degrees
     >>> cal = zrp_ga.calibrate(arm, (np.degrees(q[:30]), 1e3 * p[:30]), validation=(np.degrees(q[30:]), 1e3 * p[30:]),
@@ -164,7 +166,7 @@ def calibrate(
 
 
 def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, progress: bool, settings: dict) -> list[Calibration]:
-    from zrp_ga import robots
+    from zrp_ga.io import presets
     from zrp_ga.problems import measured
     from zrp_ga.run import build, execute
     from zrp_ga.run.shared import Cache
@@ -178,7 +180,7 @@ def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, 
     if measured_problem:
         over.insert(0, "problem=measured")
     base = _load(over + ["problem.calibration_file=memory"] if data is not None else over)
-    arm = robot if isinstance(robot, ZRPRobot) else robots.load(**_robot_source(robot))
+    arm = robot if isinstance(robot, ZRPRobot) else presets.load(**_robot_source(robot))
     task = None
     if data is not None:
         conf = config.section(config.MeasuredConf, {k: v for k, v in base.problem.items() if k != "_target_"}, "problem")
@@ -209,9 +211,9 @@ def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, 
 
 
 def _robot_source(robot: str | Path) -> dict:
-    from zrp_ga import robots
+    from zrp_ga.io import presets
 
-    return {"name": str(robot)} if str(robot) in robots.names() else {"file": str(robot)}
+    return {"name": str(robot)} if str(robot) in presets.names() else {"file": str(robot)}
 
 
 def _measurements(data, robot: ZRPRobot, c: config.MeasuredConf, what: str) -> Measurements | None:
@@ -219,7 +221,7 @@ def _measurements(data, robot: ZRPRobot, c: config.MeasuredConf, what: str) -> M
     and ``problem.angle_unit``, ``auto`` detected), whatever form it takes."""
     if data is None:
         return None
-    from zrp_ga import measurements
+    from zrp_ga.io import measurements
 
     fmt = measurements.zrp_format(robot.n, c.length_unit, c.angle_unit, c.orientation_convention)
     if isinstance(data, (str, Path)):

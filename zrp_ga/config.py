@@ -63,12 +63,12 @@ class Repair(enum.Enum):
 
 
 class Format(enum.Enum):
-    zrp = "zrp"  # zrp_ga's CSV format (zrp_ga/measurements.py)
+    zrp = "zrp"  # zrp_ga's CSV format (zrp_ga/io/measurements.py)
     ur10_ipa = "ur10_ipa"  # the UR10 laser-tracker files of Landgraf et al.
 
 
 class Index(enum.Enum):
-    """Observability indices for pose selection (docs/model.md, section 6; zrp_ga.observability)."""
+    """Observability indices for pose selection (docs/model.md, section 6; zrp_ga.model.observability)."""
 
     O1 = "O1"  # D-optimality: (s_1 ... s_m)^(1/m) / sqrt(M)
     O2 = "O2"  # inverse condition number s_m / s_1
@@ -193,7 +193,7 @@ class ProblemConf:
     cost: Cost = Cost.linear
     norm: Norm = Norm.spectral
     orientation_weight: float = 1.0  # m per rad in the residual
-    kernel: Kernel = Kernel.rodrigues  # the compiled cost of a population (zrp_ga.kinematics.KERNELS)
+    kernel: Kernel = Kernel.rodrigues  # the compiled cost of a population (zrp_ga.model.kinematics.KERNELS)
 
     def check(self, key: str = "problem") -> None:
         for name in ("axis_error", "body_error", "search_scale"):
@@ -221,7 +221,7 @@ class SimulatedConf(ProblemConf):
         super().check(key)
         _require(self.n_poses >= 1, f"{key}.n_poses", "at least 1", self.n_poses)
         _require(self.n_validation >= 0, f"{key}.n_validation", "at least 0", self.n_validation)
-        from zrp_ga import checks
+        from zrp_ga.core import checks
 
         checks.seed(self.seed, f"{key}.seed")
         for name in ("joint_noise", "position_noise", "orientation_noise"):
@@ -262,12 +262,12 @@ class MeasuredConf(ProblemConf):
             raise ConfigError(f"{key}.calibration_file: a measured problem needs a file")
         f = self.validation_fraction
         _require(f is None or 0.0 < f < 1.0, f"{key}.validation_fraction", "in (0, 1) or null", f)
-        from zrp_ga import checks
+        from zrp_ga.core import checks
 
         checks.validation_sources(self.validation_file, f, key)
         _require(self.length_unit in ("m", "mm", "auto"), f"{key}.length_unit", "m, mm or auto", self.length_unit)
         _require(self.angle_unit in ("rad", "deg", "auto"), f"{key}.angle_unit", "rad, deg or auto", self.angle_unit)
-        from zrp_ga.measurements import check_convention
+        from zrp_ga.core.checks import check_convention
 
         try:
             check_convention(self.orientation_convention, f"{key}.orientation_convention")
@@ -315,7 +315,7 @@ class PoseSelectionConf(MeasuredConf):
         _require(s is None or (math.isfinite(s) and s > 0.0), f"{key}.length_scale", "a length > 0 (m) or null", s)
         f = self.validation_fraction
         _require(f is None or 0.0 < f < 1.0, f"{key}.validation_fraction", "in (0, 1) or null", f)
-        from zrp_ga import checks
+        from zrp_ga.core import checks
 
         checks.validation_sources(self.validation_file, f, key)
         if not self.calibration_file:
@@ -328,7 +328,7 @@ class PoseSelectionConf(MeasuredConf):
 
 @dataclasses.dataclass
 class RobotConf:
-    _target_: str = "zrp_ga.robots.load"
+    _target_: str = "zrp_ga.io.presets.load"
     name: Optional[str] = "puma560"  # a preset
     file: Optional[str] = None  # or a robot file: DH/MDH table, ZRP YAML or URDF (takes precedence)
     base_link: Optional[str] = None  # URDF: the chain's first link (null: the root)
@@ -352,7 +352,7 @@ class Config:
     checkpoint_every: int = 10  # generations between checkpoints; 0: none
     resume: Optional[str] = None  # a run directory to continue from its checkpoint
     progress: bool = True  # a progress line on stderr: a run's, and a sweep's with zrp_ga's launcher
-    objective: Objective = Objective.final_cost  # what the run returns to a sweeper (zrp_ga.summary.objective)
+    objective: Objective = Objective.final_cost  # what the run returns to a sweeper (zrp_ga.run.summary.objective)
 
 
 # --- zrp_ga's Hydra launcher (hydra/launcher=zrp_ga; hydra_plugins/zrp_ga_launcher) --------------

@@ -33,7 +33,8 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
-from zrp_ga import dh, kinematics, robot_files
+from zrp_ga.io import robot_files
+from zrp_ga.model import dh, kinematics
 
 HERE = Path(__file__).parent
 TOOLS_MM = {"A": [60.0, 0.0, 30.0], "B": [-30.0, 52.0, 30.0], "C": [-30.0, -52.0, 30.0]}

@@ -30,7 +30,10 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from zrp_ga import app, config, kinematics, robot_files
+from zrp_ga import config
+from zrp_ga.io import robot_files
+from zrp_ga.model import kinematics
+from zrp_ga.run import execute
 
 HERE = Path(__file__).parent
 RESULTS = HERE.parent / "results"
@@ -122,7 +125,7 @@ def main() -> None:
     summaries = {}
     for key, over in runs().items():
         run_dir = root / str(len(summaries))
-        app.run(config.load(over + ["progress=false"]), run_dir)
+        execute.run(config.load(over + ["progress=false"]), run_dir)
         s = summaries[key] = json.loads((run_dir / "summary.json").read_text())
         check = f"{urdf_check(run_dir, s):.1e}" if key[1] == "same tracker position" else "n/a"
         if key[0] == "URDF" and "diff" not in summaries:

@@ -6,7 +6,7 @@ For each job, as ``run_job`` does it: its output directory, the three ``.hydra``
 of the job (``HydraConfig``, its ``env_set``, its working directory with ``hydra.job.chdir``)
 and its log file (``hydra.job_logging``) while anything is done for it alone, the callbacks'
 ``on_job_start`` and ``on_job_end`` (zrp_ga's manifest, any of the user's), and a ``JobReturn``
-with its status and return value. The task's own part is that of ``zrp_ga.cli.main`` for a job
+with its status and return value. The task's own part is that of ``zrp_ga.cli.main.main`` for a job
 of a sweep: the run, then the one line saying how it ended.
 
 Logging is configured once for the batch, as Hydra configures it for its first job; the
@@ -21,7 +21,7 @@ the garbage collector is kept off the objects from before the batch (``python
 tests/launcher_overhead.py``: 7 CPU-ms a job on the operator grid, from 23).
 
 Callable in any process that got the pickled configs and ``hydra_context`` (a worker of this
-launcher, or a cluster's job): :func:`run_batch`. A task function other than ``zrp_ga.cli.main``
+launcher, or a cluster's job): :func:`run_batch`. A task function other than ``zrp_ga.cli.main.main``
 runs its jobs one at a time through Hydra's ``run_job``. Hydra's public interfaces only.
 """
 
@@ -69,10 +69,10 @@ def run_alone(idx: int, config: DictConfig, hydra_context: HydraContext, task_fu
 
 
 def is_zrp_ga(task_function: Any) -> bool:
-    """Whether ``task_function`` is ``zrp_ga.cli.main`` (or the function it wraps), whose jobs
+    """Whether ``task_function`` is ``zrp_ga.cli.main.main`` (or the function it wraps), whose jobs
     :func:`run_batch` runs together."""
     fn = getattr(task_function, "__wrapped__", task_function)
-    return (getattr(fn, "__module__", None), getattr(fn, "__qualname__", None)) == ("zrp_ga.cli", "main")
+    return (getattr(fn, "__module__", None), getattr(fn, "__qualname__", None)) == ("zrp_ga.cli.main", "main")
 
 
 def _number(config: DictConfig, idx: int) -> None:
@@ -328,7 +328,7 @@ def _copy(container: Any) -> Any:
 def _sweep_job_args(job: _Job) -> tuple[Path, Any, dict]:
     """A job of a sweep as the run layer takes it (``execute.sweep_job``: its directory, its
     place in the sweep, the groups' options), from Hydra's config of the job, as
-    ``zrp_ga.cli.main`` makes them (not imported from there: the command line imports this
+    ``zrp_ga.cli.main.main`` makes them (not imported from there: the command line imports this
     launcher): from the values its ``prepare`` read, resolved where they have interpolations."""
     from zrp_ga.run.directory import Sweep
 
@@ -522,7 +522,7 @@ class _Batch:
         return True
 
     def sweep(self, ready: list[_Job]) -> list[Any]:
-        """The runs, together (``zrp_ga.cli.main``'s part, but the console line)."""
+        """The runs, together (``zrp_ga.cli.main.main``'s part, but the console line)."""
         from zrp_ga.run import execute
 
         tasks = []
@@ -533,7 +533,7 @@ class _Batch:
 
     def end(self, job: _Job, value: Any) -> None:
         """As ``run_job`` after the task: the console line, the status, the callbacks."""
-        from zrp_ga import summary
+        from zrp_ga.run import summary
 
         ret = job.ret
         if isinstance(value, Exception):

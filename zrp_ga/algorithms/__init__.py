@@ -6,7 +6,7 @@ callbacks) -> Result``. Population algorithms have pymoo's shape: :meth:`Algorit
 :meth:`Algorithm.restore` (a checkpoint), :meth:`Algorithm.step` (one generation) while
 :meth:`Algorithm.has_next`. After every generation :meth:`Algorithm.run` builds a row (the
 population statistics, :func:`population_stats`) and hands it to each callback in turn
-(:mod:`zrp_ga.callbacks`: timing, validation error, the convergence CSV, progress,
+(:mod:`zrp_ga.run.callbacks`: timing, validation error, the convergence CSV, progress,
 checkpoints). What an algorithm shows its callbacks: ``gen``, ``nevals``, ``costs`` (the current
 population's), ``n_nonfinite`` (of the last evaluated batch), :meth:`Algorithm.current` (the
 genome and cost the row reports), ``best_x``/``best_cost`` (the best ever seen) and ``toolbox``
@@ -27,7 +27,7 @@ import numpy as np
 from deap import base
 from numpy.typing import NDArray
 
-from zrp_ga.problems.protocol import Problem
+from zrp_ga.core.problem import Problem
 
 Array = NDArray[np.float64]
 

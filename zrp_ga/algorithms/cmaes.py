@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga import checks
 from zrp_ga.algorithms import Algorithm, Result
 from zrp_ga.config import ConfigError, PopulationConf, section
+from zrp_ga.core import checks
 
 
 class CMAES(Algorithm):

@@ -22,9 +22,9 @@ from numpy.typing import NDArray
 from zrp_ga import operators
 from zrp_ga.algorithms import Algorithm, Array, Result
 from zrp_ga.config import ConfigError, PopulationConf, RefineConf, Repair, SelectionConf, Strategy, VariationConf, section
+from zrp_ga.core.problem import GeneBlocks, LeastSquares, Problem, Repairing, Sampling
 from zrp_ga.operators.base import Streams
 from zrp_ga.operators.repair import repair
-from zrp_ga.problems.protocol import GeneBlocks, LeastSquares, Problem, Repairing, Sampling
 
 UNARY = (("mutate", "mutation"), ("invert", "inversion"), ("rotate", "rotation"))
 

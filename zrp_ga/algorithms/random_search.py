@@ -9,7 +9,7 @@ import numpy as np
 
 from zrp_ga.algorithms import Algorithm, Result
 from zrp_ga.config import ConfigError
-from zrp_ga.problems.protocol import Sampling
+from zrp_ga.core.problem import Sampling
 
 
 class RandomSearch(Algorithm):

@@ -25,7 +25,7 @@ from zrp_ga.run import directory
 class Refused(BaseException):
     """A run refused before it started; ``error`` says why. A BaseException because Hydra turns
     a callback's ordinary exceptions into warnings and goes on; this one passes through to the
-    console script (:func:`zrp_ga.cli.cli`), like ``KeyboardInterrupt``."""
+    console script (:func:`zrp_ga.cli.main.cli`), like ``KeyboardInterrupt``."""
 
     def __init__(self, error: Exception):
         super().__init__(str(error))
@@ -44,8 +44,8 @@ class Prepare(Callback):
                               dict(config.hydra.runtime.choices))  # fmt: skip
         except (ValueError, OSError) as exc:
             raise Refused(exc) from None
-        except MemoryError as exc:  # not a warning, and not the work again (zrp_ga.budget's estimate missed)
-            raise Refused(MemoryError(f"out of memory before the run started ({exc}); see zrp_ga.budget")) from None
+        except MemoryError as exc:  # not a warning, and not the work again (zrp_ga.run.budget's estimate missed)
+            raise Refused(MemoryError(f"out of memory before the run started ({exc}); see zrp_ga.run.budget")) from None
         if config.get("resume") and not any(o.startswith("hydra.run.dir=") for o in config.hydra.overrides.hydra):
             # Hydra's own files (log, config) go into the resumed run's directory, not a new outputs/DATE/TIME
             with open_dict(config.hydra), read_write(config.hydra):

@@ -13,7 +13,7 @@ are small compiled loops. Any other function named in a config, DEAP's own opera
 checks its parameters before any work: known to the function, in range, none missing.
 
 In a DEAP toolbox of your own, on DEAP's list individuals, register them through
-:func:`zrp_ga.deap_tools.for_deap`, which converts the lists and binds the generator.
+:func:`zrp_ga.operators.deap_tools.for_deap`, which converts the lists and binds the generator.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from zrp_ga._numba import jit
+from zrp_ga.core.compiled import jit
 
 Array = NDArray[np.float64]
 

@@ -21,14 +21,14 @@ from numpy.typing import NDArray
 from zrp_ga.operators.base import batched
 
 if TYPE_CHECKING:  # a type only: the problems sit above the operators
-    from zrp_ga.problems.protocol import LeastSquares
+    from zrp_ga.core.problem import LeastSquares
 
 Array = NDArray[np.float64]
 
 
 def step(problem: LeastSquares, x: Array, rcond: float) -> Array:
     """The step for one genome ``x`` (K,) of a problem with a residual and its Jacobian (and
-    gene ranges ``lower``/``upper``): :class:`zrp_ga.problems.protocol.LeastSquares`."""
+    gene ranges ``lower``/``upper``): :class:`zrp_ga.core.problem.LeastSquares`."""
     J, r = problem.jacobian(x), problem.residual(x)
     new = x + np.linalg.lstsq(J, r, rcond=rcond)[0]
     if np.all((new >= problem.lower) & (new <= problem.upper)):

@@ -4,8 +4,8 @@ naming it by ``_target_`` (and a schema in :mod:`zrp_ga.config`). ``run_seed`` i
 seed; ``settings`` are the ``problem`` node's keys, its own ``seed`` among them (a named
 instance's, which the run's seed must not replace).
 
-A :class:`Task` is a problem instance (:class:`zrp_ga.problem.CalibrationProblem`, what the
-optimisers see) with what judges its answers (:class:`zrp_ga.metrics.Judge`: validation poses,
+A :class:`Task` is a problem instance (:class:`zrp_ga.model.cost.CalibrationProblem`, what the
+optimisers see) with what judges its answers (:class:`zrp_ga.model.metrics.Judge`: validation poses,
 the truth in simulation) and what a run writes about it beyond the common files.
 """
 
@@ -18,12 +18,12 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from zrp_ga import dh
 from zrp_ga.config import ProblemConf
-from zrp_ga.layout import Layout, dh_mask, fixed_summary, mask
-from zrp_ga.metrics import Judge
-from zrp_ga.problem import CalibrationProblem
-from zrp_ga.robot import ZRPRobot
+from zrp_ga.model import dh
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout, dh_mask, fixed_summary, mask
+from zrp_ga.model.metrics import Judge
+from zrp_ga.model.robot import ZRPRobot
 
 Array = NDArray[np.float64]
 
@@ -33,7 +33,7 @@ class Task:
     """A calibration problem instance, named, with its judge; ``robot`` is the arm as given
     (before any registration), ``info`` goes into ``summary.json``, ``warnings`` (found while
     building it) into its warnings. ``nominal_if_worse``: a result that fits the calibration
-    data worse than the nominal arm is replaced by the nominal arm (:mod:`zrp_ga.summary`)."""
+    data worse than the nominal arm is replaced by the nominal arm (:mod:`zrp_ga.run.summary`)."""
 
     name: str
     problem: CalibrationProblem
@@ -80,9 +80,9 @@ class Task:
 
 def masked(c: ProblemConf, layout: Layout, info: dict[str, Any] | None = None, robot: ZRPRobot | None = None) -> Layout:
     """``layout`` with the parameters ``problem.fixed`` / ``problem.free`` name held at nominal
-    (:func:`zrp_ga.layout.mask`; an unknown name is one line naming the key and the valid
+    (:func:`zrp_ga.model.layout.mask`; an unknown name is one line naming the key and the valid
     names); what is fixed goes into ``info["fixed"]`` (``summary.json``). DH names in
-    ``problem.fixed`` (``dh_theta_2``: :func:`zrp_ga.layout.dh_mask`) need ``robot``, the nominal
+    ``problem.fixed`` (``dh_theta_2``: :func:`zrp_ga.model.layout.dh_mask`) need ``robot``, the nominal
     arm read from a DH or modified-DH table file; their nominal values go into
     ``info["dh_fixed_nominal"]``."""
     fixed = None if c.fixed is None else [c.fixed] if isinstance(c.fixed, str) else list(c.fixed)
@@ -92,7 +92,7 @@ def masked(c: ProblemConf, layout: Layout, info: dict[str, Any] | None = None, r
         if str(name).strip().startswith("dh_"):
             raise ValueError(f"problem.free: {str(name).strip()!r}: DH parameters are named in problem.fixed only")
     if dh_names:
-        from zrp_ga.dh import DHTable
+        from zrp_ga.model.dh import DHTable
 
         if robot is None:
             raise ValueError(f"problem.fixed: {dh_names[0]!r}: DH parameters can be fixed in simulated problems only "

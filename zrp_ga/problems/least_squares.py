@@ -1,4 +1,4 @@
-"""Levenberg-Marquardt on a :class:`~zrp_ga.problems.protocol.LeastSquares` problem, as one
+"""Levenberg-Marquardt on a :class:`~zrp_ga.core.problem.LeastSquares` problem, as one
 function: ``scipy.optimize.least_squares(method="lm")`` on its residual with its analytic
 Jacobian, from the nominal parameters (x = 0) and unbounded, keeping the best genome any
 evaluation saw. :class:`zrp_ga.algorithms.lm.LM` runs it as an optimiser (a convergence row per
@@ -17,7 +17,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from zrp_ga.problems.protocol import LeastSquares
+from zrp_ga.core.problem import LeastSquares
 
 Array = NDArray[np.float64]
 X_SCALE = 1e-3  # m or rad per gene: 1 mm and 1 mrad weigh alike

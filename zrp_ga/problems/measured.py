@@ -4,7 +4,7 @@ instrument's frame, for any serial arm.
 :func:`build` reads the files (units found from the data unless stated, every bad input one
 line naming file, line and column) and refuses data too few to identify the arm's parameters.
 :func:`from_measurements` registers the nominal arm to the calibration points (base transform
-and one offset per tool point, :mod:`zrp_ga.registration`) and identifies its parameters, the
+and one offset per tool point, :mod:`zrp_ga.model.registration`) and identifies its parameters, the
 base point included (and the hand orientation with measured orientations), in the instrument's
 frame; several tool points share one arm, each with its own last body vector.
 
@@ -32,16 +32,17 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from zrp_ga import error_model, measurements, metrics, records
 from zrp_ga.config import Format, MeasuredConf, Ranges, section
-from zrp_ga.errors import warn
-from zrp_ga.layout import Layout
-from zrp_ga.measurements import Measurements
-from zrp_ga.metrics import Judge
-from zrp_ga.problem import CalibrationProblem, model_rank
+from zrp_ga.core.errors import warn
+from zrp_ga.io import measurements, records
+from zrp_ga.model import error_model, metrics
+from zrp_ga.model.cost import CalibrationProblem, model_rank
+from zrp_ga.model.layout import Layout
+from zrp_ga.model.metrics import Judge
+from zrp_ga.model.poses import Measurements
+from zrp_ga.model.registration import Registration, register
+from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.problems import Task, half_ranges, masked
-from zrp_ga.registration import Registration, register
-from zrp_ga.robot import ZRPRobot
 
 log = logging.getLogger(__name__)
 POSE_ERRORS = "pose_errors.csv"

@@ -4,7 +4,7 @@ candidate poses so that a calibration on them alone identifies the parameters we
 The candidates are joint configurations sampled within the arm's limits and measured on a
 simulated true arm, or the rows of a measurement file. A genome is k distinct candidate
 indices; its cost is an observability index of the scaled error Jacobian of the identifiable
-parameters (:mod:`zrp_ga.observability`, docs/model.md section 6), computed for a whole
+parameters (:mod:`zrp_ga.model.observability`, docs/model.md section 6), computed for a whole
 population from precomputed per-pose Jacobian blocks. The GA finds subsets through the
 problem's sampling and repair (its declared parts, :mod:`zrp_ga.problems.protocol`) and the subset operators
 (:mod:`zrp_ga.operators.subset`); the baselines are :mod:`zrp_ga.algorithms.random_search` and
@@ -28,18 +28,20 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zrp_ga import error_model, metrics, observability, records, simulation
 from zrp_ga.config import Cost, Index, PoseSelectionConf, section
-from zrp_ga.layout import Layout
-from zrp_ga.measurements import Measurements
-from zrp_ga.metrics import Judge
+from zrp_ga.core.problem import GeneBlocks, Problem, Repairing, Sampling
+from zrp_ga.io import records
+from zrp_ga.model import error_model, metrics, observability, simulation
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout
+from zrp_ga.model.metrics import Judge
+from zrp_ga.model.poses import Measurements
+from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.operators import subset
-from zrp_ga.problem import CalibrationProblem
 from zrp_ga.problems import Task, half_ranges, masked
 from zrp_ga.problems.least_squares import levenberg_marquardt
 from zrp_ga.problems.measured import MeasuredTask, from_measurements, read_sets
-from zrp_ga.problems.protocol import GeneBlocks, Identifiable, Problem, Repairing, Sampling, SelfJudging
-from zrp_ga.robot import ZRPRobot
+from zrp_ga.problems.protocol import Identifiable, SelfJudging
 
 Array = NDArray[np.float64]
 SELECTED = "selected_poses.csv"
@@ -214,7 +216,7 @@ class SelectionTask(Task, SelfJudging):
         return j.task.export(j.x)
 
     def judged(self, result) -> tuple[dict[str, Any], NDArray[np.intp]]:
-        """``summary.json``'s judgement of the best subset (see :func:`zrp_ga.summary.judged`)."""
+        """``summary.json``'s judgement of the best subset (see :func:`zrp_ga.run.summary.judged`)."""
         x = self.chosen(result.x)
         j = self.judgement(x)
         mm = lambda pair: {"nominal": pair[0] * 1e3, "calibrated": pair[1] * 1e3}
@@ -268,7 +270,7 @@ class SelectionTask(Task, SelfJudging):
 
     def write(self, out: Path, x: ArrayLike) -> None:
         """``selected_poses.csv``: candidate index, file line, joint values (the arm calibrated
-        on them goes to the robot files, :func:`zrp_ga.summary.write_robot`)."""
+        on them goes to the robot files, :func:`zrp_ga.run.summary.write_robot`)."""
         x, q = self.chosen(x), self.candidates.q
         records.write_csv(out / SELECTED, [{"candidate": int(c), "line": int(self.candidates.lines[c]),
                                             **{f"q{i + 1}": v for i, v in enumerate(q[c])}} for c in x])  # fmt: skip

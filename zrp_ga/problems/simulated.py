@@ -1,18 +1,18 @@
 """Simulated problems: the paper's case study and its multi-pose forms (``problem=paper``,
 ``problem=multipose``): a true robot drawn around the nominal one, calibration and validation
-poses measured on it (:mod:`zrp_ga.simulation`)."""
+poses measured on it (:mod:`zrp_ga.model.simulation`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga import metrics, simulation
 from zrp_ga.config import SimulatedConf, section
-from zrp_ga.layout import Layout
-from zrp_ga.metrics import Judge
-from zrp_ga.problem import CalibrationProblem
+from zrp_ga.model import metrics, simulation
+from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout
+from zrp_ga.model.metrics import Judge
+from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.problems import Task, half_ranges, masked
-from zrp_ga.robot import ZRPRobot
 
 
 def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> Task:

@@ -93,13 +93,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from zrp_ga.report.cli import main, write_report
+from zrp_ga.report.write import write_report
 
 _LAZY = {  # imported on first use: the command checks its paths before loading pandas, scipy and matplotlib
     "pose_error_figure": "figures", "configurations": "labels", "describe": "labels", "Run": "runs", "find_runs": "runs",
     "build_tables": "tables", "TargetRule": "targets", "figures": None, "targets": None, "tables": None, "runs": None,
     "labels": None, "stats": None, "ioh_export": None, "common": None, "conclusions": None, "drawing": None, "page": None,
-    "browser": None,
 }  # fmt: skip
 
 
@@ -112,5 +111,5 @@ def __getattr__(name: str) -> Any:
     return module if _LAZY[name] is None else getattr(module, name)
 
 
-__all__ = ["Run", "TargetRule", "build_tables", "configurations", "describe", "find_runs", "main", "pose_error_figure",
+__all__ = ["Run", "TargetRule", "build_tables", "configurations", "describe", "find_runs", "pose_error_figure",
            "write_report"]  # fmt: skip

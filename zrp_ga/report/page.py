@@ -13,7 +13,7 @@ import re
 import numpy as np
 import pandas as pd
 
-from zrp_ga.fileio import package_versions
+from zrp_ga.core.fileio import package_versions
 from zrp_ga.report import conclusions
 from zrp_ga.report.common import ALPHA
 

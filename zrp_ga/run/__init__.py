@@ -8,9 +8,9 @@
   passes, and the objects a config builds;
 - :mod:`zrp_ga.run.execute`: :func:`~zrp_ga.run.execute.run` and
   :func:`~zrp_ga.run.execute.sweep_job`, which optimise and write the run's files (with
-  :mod:`zrp_ga.callbacks`, :mod:`zrp_ga.checkpoint` and :mod:`zrp_ga.summary`).
+  :mod:`zrp_ga.run.callbacks`, :mod:`zrp_ga.run.checkpoint` and :mod:`zrp_ga.run.summary`).
 
-The command line (:mod:`zrp_ga.cli`), :func:`zrp_ga.calibrate`, the experiments and zrp_ga's
+The command line (:mod:`zrp_ga.cli.main`), :func:`zrp_ga.calibrate`, the experiments and zrp_ga's
 launcher all run through it. This package imports nothing itself, so that its lowest module
 (``directory``) can be imported without the rest.
 """

@@ -18,10 +18,11 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from zrp_ga import budget, checks, config
+from zrp_ga import config
 from zrp_ga.config import ConfigError
+from zrp_ga.core import checks
 from zrp_ga.problems.protocol import SelfJudging
-from zrp_ga.run import directory
+from zrp_ga.run import budget, directory
 from zrp_ga.run.shared import CACHE, Cache
 
 # Command-line settings that a resumed run accepts besides resume (they change no result).
@@ -82,7 +83,7 @@ def build(cfg: DictConfig, out: Path | None, state: dict | None, choices: dict, 
 
     if cfg.checkpoint_every < 0:
         raise ConfigError(f"checkpoint_every: must be >= 0, got {cfg.checkpoint_every}")
-    checks.run_settings(cfg)  # seeds, an optimiser's needs of the shared settings (zrp_ga.checks)
+    checks.run_settings(cfg)  # seeds, an optimiser's needs of the shared settings (zrp_ga.core.checks)
     resolved = config.resolved(cfg)
     key = instance_key(cfg, resolved)
     if task is None:
@@ -126,7 +127,7 @@ def _stamps(cfg: DictConfig) -> list:
 
 def _instance(cfg: DictConfig) -> Any:
     robot = config.instantiate(cfg.robot, "robot")
-    budget.check_config(cfg, robot)  # memory and time, before the problem is built (zrp_ga.budget)
+    budget.check_config(cfg, robot)  # memory and time, before the problem is built (zrp_ga.run.budget)
     return config.instantiate(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
 
 
@@ -153,7 +154,7 @@ def check_writable(out: Path) -> None:
 def _resume(cfg: DictConfig, overrides: Sequence[str]) -> tuple[Path, dict, DictConfig]:
     """The run directory, checkpoint state and config of ``resume=DIR``; the other settings of
     the command line are refused (the run continues with its own)."""
-    from zrp_ga import checkpoint
+    from zrp_ga.run import checkpoint
 
     out = Path(cfg.resume).expanduser()
     if not out.is_dir():

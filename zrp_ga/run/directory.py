@@ -99,7 +99,7 @@ def status(out: Path) -> str | None:
 
 
 def write_status(out: Path, state: str, error: str | None = None) -> None:
-    from zrp_ga import records
+    from zrp_ga.io import records
 
     records.write_json(out / STATUS, {"status": state} if error is None else {"status": state, "error": error})
 

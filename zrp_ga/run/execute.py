@@ -3,7 +3,7 @@ files written into its directory with ``status.json`` saying where it is. A job 
 (:func:`sweep_job`) also continues whatever a killed run of the same sweep left in its
 directory, and records its state in the sweep's manifest.
 
-Nothing here knows Hydra: the command line (``zrp_ga.cli``), :func:`zrp_ga.calibrate`, the
+Nothing here knows Hydra: the command line (``zrp_ga.cli.main``), :func:`zrp_ga.calibrate`, the
 experiments and the launcher's workers all run through :func:`run` or :func:`sweep_job`.
 """
 
@@ -20,7 +20,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 
 from zrp_ga.config import ConfigError
-from zrp_ga.errors import warn
+from zrp_ga.core.errors import warn
 from zrp_ga.run import directory
 from zrp_ga.run.build import Prepared, build, check_inputs, inputs, instance_key, prepare, task_config
 from zrp_ga.run.directory import Sweep
@@ -74,7 +74,7 @@ def execute(p: Prepared, out: Path | None, progress: bool, sweep: Sweep | None =
     import numpy as np
     from threadpoolctl import threadpool_limits
 
-    from zrp_ga import callbacks, summary
+    from zrp_ga.run import callbacks, summary
 
     cfg, task = p.cfg, p.task
     seed = int(cfg.seed)
@@ -216,7 +216,7 @@ def _together(group: list[tuple[int, Prepared, Sweep | None]], cache: Cache, job
     KeyboardInterrupt after every unfinished run saved its checkpoint and recorded it."""
     from threadpoolctl import threadpool_limits
 
-    from zrp_ga import callbacks, summary
+    from zrp_ga.run import callbacks, summary
 
     out: list[Any] = [None] * len(group)
     live: list[int] = []
@@ -328,7 +328,7 @@ def _run_job(p: Prepared, sweep: Sweep, cache: Cache) -> float:
 def _job(cfg: DictConfig, out: Path, sweep: Sweep, choices: dict, cache: Cache) -> float | Prepared:
     """A sweep job's run prepared, or its objective when its directory holds it finished (see
     :func:`sweep_job`); ``cfg`` with or without its hydra node."""
-    from zrp_ga import checkpoint
+    from zrp_ga.run import checkpoint
 
     cfg = task_config(cfg)
     damaged = directory.damage(out) if directory.status(out) == "done" else None
@@ -405,7 +405,8 @@ def warm_up(cfg: DictConfig, cache: Cache = CACHE) -> None:
     import numpy as np
     from threadpoolctl import threadpool_limits
 
-    from zrp_ga import callbacks, checkpoint, records, summary  # noqa: F401 (imported for the runs)
+    from zrp_ga.io import records  # noqa: F401 (imported for the runs)
+    from zrp_ga.run import callbacks, checkpoint, summary  # noqa: F401 (imported for the runs)
 
     try:
         p = build(task_config(cfg), None, None, {}, cache)

@@ -1,0 +1,138 @@
+"""``zrp-ga``: Hydra's app. ``zrp-ga`` alone runs the
+paper's case study; any setting can be overridden (``zrp-ga problem=multipose seed=3``), swept
+(``zrp-ga -m crossover=glob(*)``) or inspected with Hydra's own flags (``--cfg job``,
+``--info defaults``, ``--help``).
+
+:func:`main` is the ``@hydra.main`` entry point: it reads what Hydra knows about the run (its
+directory, the command line's overrides, the groups' options, the sweep job) and hands the
+config to the run layer (:mod:`zrp_ga.run`), which checks, runs and records it (a single run
+was checked and built before Hydra made its directory, by the ``Prepare`` callback of
+:mod:`zrp_ga.cli.callbacks`, and is run as built). :func:`cli` is the console script, which
+turns every error in the user's input into one line and exit code 2. Heavy modules are
+imported where they are used, so that ``--help`` starts fast.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import hydra
+from omegaconf import DictConfig
+
+from zrp_ga import config
+from zrp_ga.core.errors import one_line
+
+config.register()
+
+
+@hydra.main(config_path="pkg://zrp_ga.conf", config_name="config", **config.hydra_options(),
+            **({"execution_whitelist": config.TRUSTED_TARGETS} if config.hydra_14() else {}))  # fmt: skip
+def main(cfg: DictConfig) -> float:
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    from zrp_ga.cli.callbacks import take_prepared
+    from zrp_ga.run import build, execute, summary
+    from zrp_ga.run.directory import Sweep
+
+    hc = HydraConfig.get()
+    out = Path(hc.runtime.output_dir)
+    choices = dict(hc.runtime.choices)
+    overrides = list(hc.overrides.task)
+    if hc.mode == RunMode.MULTIRUN:
+        sweep = Sweep(Path(hc.sweep.dir), int(hc.job.num), tuple(overrides), str(hc.sweep.subdir))
+        objective = execute.sweep_job(cfg, out, sweep, choices)
+        summary.console(out, (hc.job.num, " ".join(overrides)))
+    else:
+        p = take_prepared(out) or build.prepare(cfg, out, overrides, choices)  # built once, by Prepare
+        objective = execute.objective(execute.run_prepared(p, bool(cfg.progress)))
+        summary.console(p.out)
+    return objective
+
+
+def cli() -> None:
+    """The console script: :func:`main`, with the errors in the user's input (a bad key or value,
+    a missing or malformed file) printed as one line, exit code 2, and Ctrl-C (or SIGTERM, as a
+    cluster's job limit sends it) as a hint to resume.
+
+    Hydra prints composition errors over several lines and exits with 1; with
+    ``HYDRA_FULL_ERROR`` set it raises them instead, which is how they are caught here (set it
+    yourself to see Hydra's full traceback)."""
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    from zrp_ga.cli.callbacks import Refused
+
+    full = os.environ.get("HYDRA_FULL_ERROR") == "1"
+    os.environ["HYDRA_FULL_ERROR"] = "1"
+    signal.signal(signal.SIGTERM, _stop)  # a job limit or shutdown: stop as at Ctrl-C, checkpoints saved
+    _register_launcher()
+    try:
+        with _few_collections():
+            main()
+    except (HydraException, OmegaConfBaseException, ValueError, OSError, MemoryError, Refused) as exc:
+        if full:
+            raise
+        print(f"zrp-ga: error: {one_line(getattr(exc, 'error', exc))}", file=sys.stderr)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        print(f"\nzrp-ga: interrupted; {_continue_with()}", file=sys.stderr)
+        sys.exit(130)
+
+
+@contextlib.contextmanager
+def _few_collections() -> Iterator[None]:
+    """Python's cyclic garbage collector run less often while a run's modules are imported and its
+    config composed (many objects, little garbage: 0.1 CPU-s of 370 collections, 75 now), and not
+    over the objects that live until the process ends (at its end, the collections over every
+    object of numba, scipy and Hydra took 0.3 CPU-s). Nothing a run computes depends on it."""
+    import atexit
+    import gc
+
+    from zrp_ga.run.shared import few_collections
+
+    atexit.register(gc.freeze)  # runs when the process ends, before Python's last collections
+    with few_collections():
+        yield
+
+
+def _continue_with() -> str:
+    """How to continue the interrupted run or sweep, from what Hydra knows about it."""
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    hc = HydraConfig.get() if HydraConfig.initialized() else None
+    if hc is not None and hc.mode == RunMode.MULTIRUN:
+        sweep = hc.sweep.dir
+        return (f"the finished jobs are kept in {sweep} and the interrupted ones continue from their checkpoints: "
+                f"continue with the same command and hydra.sweep.dir={sweep}")  # fmt: skip
+    where: Any = "the run directory"
+    if hc is not None:
+        resumed = [o.split("=", 1)[1] for o in hc.overrides.task if o.startswith("resume=")]
+        where = Path(resumed[-1]).expanduser() if resumed else hc.runtime.output_dir
+    return (f"the checkpoint and convergence.csv in {where} are complete up to the last finished generation: "
+            f"continue with  zrp-ga resume={where}")  # fmt: skip
+
+
+def _register_launcher() -> None:
+    """zrp_ga's launcher, registered through Hydra's public ``Plugins.register`` when Hydra did
+    not find it: hydra-core 1.3 finds plugins only by listing the modules of the
+    ``hydra_plugins`` namespace package, which an editable install (``pip install -e``, whose
+    import hook cannot be listed) hides from it (1.4 also reads the entry point in pyproject.toml)."""
+    from hydra.core.plugins import Plugins
+    from hydra.plugins.launcher import Launcher
+
+    from hydra_plugins.zrp_ga_launcher.launcher import ZrpGaLauncher
+
+    if ZrpGaLauncher not in Plugins.instance().discover(Launcher):
+        Plugins.instance().register(ZrpGaLauncher)
+
+
+def _stop(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
