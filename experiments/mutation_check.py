@@ -143,7 +143,7 @@ PLANTS: list[dict] = [
     dict(name="lock-shared", file="zrp_ga/run/directory.py",
          old="fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)", new="fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)",
          tests=["tests/test_run_directory.py"], what="two runs may write into one directory (a shared lock)"),
-    dict(name="damaged-job-kept", file="zrp_ga/run/execute.py",
+    dict(name="damaged-job-kept", file="zrp_ga/run/sweep.py",
          old='damaged = directory.damage(out) if directory.status(out) == "done" else None', new="damaged = None",
          tests=["tests/test_run_directory.py"], what="a sweep job with a damaged summary or convergence log kept as finished"),
     dict(name="checkpoint-tmp-left", file="zrp_ga/run/checkpoint.py",

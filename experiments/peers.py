@@ -57,7 +57,7 @@ def ga(problem, budget: int, seed: int, overrides: list[str]) -> Trace:
             trace.best.append(min(row["best"], trace.best[-1]) if trace.best else row["best"])
 
     cfg = config.load(overrides + ["population.generations=null", f"population.max_evals={budget}"])
-    config.instantiate(cfg.algorithm, "algorithm").run(problem, np.random.default_rng([seed, 0]), [Record()])
+    build.instantiate(cfg.algorithm, "algorithm").run(problem, np.random.default_rng([seed, 0]), [Record()])
     return trace
 
 

@@ -36,11 +36,12 @@ class Prepare(Callback):
     """Checks and builds a single run before Hydra creates its directory (see the module docstring)."""
 
     def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        from zrp_ga.config import typed
         from zrp_ga.run import build
 
         _PREPARED.clear()
         try:
-            p = build.prepare(config, Path(config.hydra.run.dir), list(config.hydra.overrides.task),
+            p = build.prepare(typed(config), Path(config.hydra.run.dir), list(config.hydra.overrides.task),
                               dict(config.hydra.runtime.choices))  # fmt: skip
         except (ValueError, OSError) as exc:
             raise Refused(exc) from None

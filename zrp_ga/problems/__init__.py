@@ -1,6 +1,6 @@
 """Problem kinds: what the config's ``problem`` group builds. Each kind is one module here with a
 ``build(robot, run_seed, **settings) -> Task`` function and one config file in ``conf/problem``
-naming it by ``_target_`` (and a schema in :mod:`zrp_ga.config`). ``run_seed`` is the run's
+naming it by ``_target_`` (and, optionally, a schema in :mod:`zrp_ga.core.schema`). ``run_seed`` is the run's
 seed; ``settings`` are the ``problem`` node's keys, its own ``seed`` among them (a named
 instance's, which the run's seed must not replace).
 
@@ -18,7 +18,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from zrp_ga.config import ProblemConf
+from zrp_ga.core.schema import ProblemConf
 from zrp_ga.model import dh
 from zrp_ga.model.cost import CalibrationProblem
 from zrp_ga.model.layout import Layout, dh_mask, fixed_summary, mask

@@ -226,7 +226,7 @@ def _get(node: Any, key: str, default: Any = None) -> Any:
 
 
 def of_config(cfg: Any, n: int) -> tuple[Size, dict[str, str]]:
-    """The :class:`Size` of a composed config (``zrp_ga.config.Config``) for an arm of ``n``
+    """The :class:`Size` of a composed config (``zrp_ga.core.schema.Config``) for an arm of ``n``
     joints, and for each part of the estimate the setting that drives it."""
     from zrp_ga.data import resolve
 

@@ -66,7 +66,7 @@ def locked(out: Path) -> Iterator[None]:
     that holds it."""
     import fcntl
 
-    from zrp_ga.config import ConfigError
+    from zrp_ga.core.schema import ConfigError
 
     fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
     try:
