@@ -5,6 +5,9 @@ temporary files of a killed run are removed when the next run starts there."""
 import errno
 import json
 import os
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
@@ -145,3 +148,58 @@ def test_a_finished_job_recorded_before_a_setting_existed_is_the_same_run(tmp_pa
         sweep._same_run(cfg, other, tmp_path)
     with pytest.raises(ConfigError, match="differs"):
         sweep._same_run(cfg, {**older, "problem": {**older["problem"], nulls[0]: [1]}}, tmp_path)
+
+
+NO_FCNTL = """
+import sys
+sys.modules["fcntl"] = None  # as on Windows: `import fcntl` fails
+"""
+
+
+def test_without_fcntl_every_module_imports_and_a_directory_in_use_is_refused(tmp_path):
+    """Every module of zrp_ga and of its launcher imports where ``fcntl`` does not exist (Windows),
+    and a run directory's lock still refuses a second run, from this process and from another,
+    until it is released."""
+    out = tmp_path / "run"
+    out.mkdir()
+    other = NO_FCNTL + textwrap.dedent(f"""
+        from pathlib import Path
+        from zrp_ga.run import directory
+        try:
+            with directory.locked(Path({str(out)!r})):
+                print("locked")
+        except ValueError as exc:
+            print(exc)
+    """)  # fmt: skip
+    code = NO_FCNTL + textwrap.dedent(f"""
+        import importlib, os, pkgutil, subprocess
+        from pathlib import Path
+        import hydra_plugins.zrp_ga_launcher, zrp_ga
+        names = [m.name for p in (zrp_ga, hydra_plugins.zrp_ga_launcher) for m in pkgutil.walk_packages(p.__path__, p.__name__ + ".")
+                 if not m.name.endswith("__main__")]
+        for name in names:
+            importlib.import_module(name)
+        print(len(names), "modules", os.getpid())
+        from zrp_ga import config
+        from zrp_ga.run import directory, execute
+        out = Path({str(out)!r})
+        cfg = config.load({[*FAST, "population.generations=2"]!r})
+        with directory.locked(out):
+            for refused in (lambda: execute.run(cfg, out), lambda: print(subprocess.run([sys.executable, "-c", {other!r}],
+                            capture_output=True, text=True).stdout.strip())):
+                try:
+                    refused()
+                except ValueError as exc:
+                    print(exc)
+        print(subprocess.run([sys.executable, "-c", {other!r}], capture_output=True, text=True).stdout.strip())
+        execute.run(cfg, out)
+        print(directory.status(out), "fcntl" in sys.modules and sys.modules["fcntl"] is None)
+    """)  # fmt: skip
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    lines = done.stdout.splitlines()
+    assert done.returncode == 0 and len(lines) == 5, done.stdout + done.stderr
+    count, _, pid = lines[0].split()
+    assert int(count) > 100  # every module of both packages
+    refused = f"{out}: another run (process {pid}) is writing into this directory; wait for it to end or choose another directory"
+    assert lines[1:3] == [refused, refused]  # from this process, then from another
+    assert lines[3] == "locked" and lines[4] == "done True"  # released: the lock is taken, and a run goes ahead

@@ -225,7 +225,7 @@ class Pool:
     def interrupt(self) -> None:
         """After Ctrl-C: let the workers finish saving; interrupt those that did not get the
         signal, and kill what still runs after that."""
-        for patience, sig in zip(PATIENCE_S, (signal.SIGINT, signal.SIGKILL)):
+        for patience, sig in zip(PATIENCE_S, (signal.SIGINT, getattr(signal, "SIGKILL", signal.SIGTERM))):  # Windows: no SIGKILL
             deadline = time.monotonic() + patience
             while any(w.process.is_alive() for w in self.workers) and time.monotonic() < deadline:
                 time.sleep(0.02)
