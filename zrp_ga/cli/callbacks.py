@@ -5,7 +5,7 @@ optimiser) before Hydra creates the run's directory, so that bad input stops wit
 leaves nothing behind; the run it built is handed to :func:`zrp_ga.cli.main`
 (:func:`take_prepared`), which runs it without building it again. :class:`Manifest` prepares
 the sweep directory and writes the manifest's table (each job records its own states,
-:func:`zrp_ga.run.execute.sweep_job`).
+:func:`zrp_ga.run.sweep.sweep_job`).
 """
 
 from __future__ import annotations
