@@ -45,7 +45,7 @@ def test_the_hydra_node_is_left_out():
 
 def test_interpolations_other_than_node_references_are_left_to_omegaconf():
     cfg = OmegaConf.create({"a": {"x": 1, "y": "${b}"}, "b": {"z": "${c.w}", "v": [1, "${a.x}"]}, "c": {"w": 2.5},
-                            "s": "run_${c.w}", "e": "\\${a}", "r": "${.s}", "n": "${c}"})  # fmt: skip
+                            "s": "run_${c.w}", "e": "\\${a}", "r": "${.s}", "n": "${c}", "w": "${c.w}", "m": "???"})  # fmt: skip
     assert config.resolved(cfg) == OmegaConf.to_container(cfg, resolve=True)
     chained = OmegaConf.create({"p": {"q": "${r}"}, "r": {"t": [1, 2]}, "u": "${p}"})
     assert config.resolved(chained) == OmegaConf.to_container(chained, resolve=True) == {

@@ -77,8 +77,7 @@ def resolved(cfg: DictConfig) -> dict:
     the config as its files record it, with the interpolations that name another node of ``cfg``
     (``algorithm.population: ${population}``) copied from that node rather than resolved one by
     one; any other interpolation: OmegaConf resolves the whole."""
-    keys = [k for k in cfg if k != "hydra"]
-    raw = {k: _raw(cfg, k) for k in keys}
+    raw = {k: _plain(v) for k, v in cfg.items_ex(resolve=False) if k != "hydra"}
 
     def filled(o: Any, seen: tuple[str, ...]) -> Any:
         if isinstance(o, dict):
@@ -96,17 +95,15 @@ def resolved(cfg: DictConfig) -> dict:
     try:
         return filled(raw, ())
     except _Unresolved:
-        return {k: _raw(cfg, k, resolve=True) for k in keys}
+        return {k: _plain(cfg[k] if isinstance(v, str) and "${" in v else v, resolve=True)  # a value interpolated: resolved
+                for k, v in cfg.items_ex(resolve=False) if k != "hydra"}  # fmt: skip
 
 
 _NODE = re.compile(r"\$\{([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*)\}")  # ${a.b}: a reference to a node, from the root
 
 
-def _raw(cfg: DictConfig, key: str, resolve: bool = False) -> Any:
-    """The plain value of ``cfg``'s top-level ``key`` (a missing one: ``???``)."""
-    if OmegaConf.is_missing(cfg, key):
-        return schema.MISSING
-    value = cfg[key]
+def _plain(value: Any, resolve: bool = False) -> Any:
+    """A top-level value of a config (as ``DictConfig.items_ex`` gives it) as plain values."""
     if isinstance(value, (DictConfig, ListConfig)):
         return OmegaConf.to_container(value, resolve=resolve, enum_to_str=True)
     return value.name if isinstance(value, enum.Enum) else value

@@ -28,7 +28,7 @@ import enum
 import math
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, Optional
 
 MISSING: Any = "???"  # a key without a value (OmegaConf's literal mark for one): a target is called without it
@@ -393,18 +393,24 @@ def setting(node: Any, key: str, default: Any = None) -> Any:
 
 
 # --- plain values and back -----------------------------------------------------------------------
+_ATOMS = frozenset({str, int, float, bool, type(None)})
+
+
 def to_dict(cfg: Any) -> Any:
     """``cfg`` (a config, a section or any value in one) as plain values: dicts in the fields'
     order, lists, Enums as their names (as ``OmegaConf.to_container(enum_to_str=True)`` gives
     them, equal to their values here). What the run's files record."""
-    if dataclasses.is_dataclass(cfg) and not isinstance(cfg, type):
-        return {f.name: to_dict(getattr(cfg, f.name)) for f in _fields(type(cfg))}
+    kind = cfg.__class__
+    if kind in _ATOMS:
+        return cfg
+    if kind is dict or (kind is not list and kind is not tuple and isinstance(cfg, Mapping)):
+        return {(k if k.__class__ is str or not isinstance(k, enum.Enum) else k.name): to_dict(v) for k, v in cfg.items()}
+    if kind is list or kind is tuple:
+        return [to_dict(v) for v in cfg]
     if isinstance(cfg, enum.Enum):
         return cfg.name
-    if isinstance(cfg, Mapping):
-        return {(k.name if isinstance(k, enum.Enum) else k): to_dict(v) for k, v in cfg.items()}
-    if isinstance(cfg, (list, tuple)):
-        return [to_dict(v) for v in cfg]
+    if dataclasses.is_dataclass(cfg) and not isinstance(cfg, type):
+        return {name: to_dict(getattr(cfg, name)) for name in _converters(kind)}
     return cfg
 
 
@@ -441,11 +447,11 @@ def _share(cfg: Config) -> None:
     algorithm = cfg.algorithm
     if not dataclasses.is_dataclass(algorithm):
         return
-    for f in _fields(type(algorithm)):
+    for f in dataclasses.fields(algorithm):
         value = getattr(algorithm, f.name)
         if "section" in f.metadata and isinstance(value, str) and value != MISSING:
             name = value.removeprefix("${").removesuffix("}")
-            if value != f"${{{name}}}" or name not in {g.name for g in _fields(Config)}:
+            if value != f"${{{name}}}" or name not in _converters(Config):
                 raise ConfigError(f"algorithm.{f.name}: must be the settings of {f.metadata['section'].__name__} "
                                   f"or a reference to a section (${{{f.name}}}), got {value!r}")  # fmt: skip
             setattr(algorithm, f.name, copy.deepcopy(getattr(cfg, name)))
@@ -455,56 +461,79 @@ def _typed(cls: type, data: Any, key: str) -> Any:
     """``data`` (a mapping) as a ``cls`` instance, each value checked against its field's type."""
     if isinstance(data, cls):
         return data
-    if not isinstance(data, Mapping):
+    if data.__class__ is not dict and not isinstance(data, Mapping):
         raise ConfigError(f"{key or 'the config'}: must be a mapping of settings, got {data!r}")
-    fields = {f.name: f for f in _fields(cls)}
-    unknown = [k for k in data if k not in fields]
-    if unknown:
-        raise ConfigError(f"{_join(key, unknown[0])}: not a setting (known: {', '.join(sorted(fields))})")
-    hints = _hints(cls)
+    converters = _converters(cls)
     values = {}
     for name, value in data.items():
-        shared = fields[name].metadata.get("section")
-        if shared is not None and isinstance(value, str):
-            values[name] = value  # a reference to the root's section: _share fills it
-        else:
-            values[name] = _value(shared or hints[name], value, _join(key, name))
+        convert = converters.get(name)
+        if convert is None:
+            raise ConfigError(f"{_join(key, name)}: not a setting (known: {', '.join(sorted(converters))})")
+        values[name] = convert(value, _join(key, name))
     return cls(**values)
 
 
-def _value(kind: Any, value: Any, key: str) -> Any:
-    """``value`` checked against the type ``kind`` of its field and converted as OmegaConf
-    converts it (an int for a float, a string for an Enum); a missing value (``???``) stays."""
-    if isinstance(value, str) and value == MISSING:
-        return value
+Convert = Callable[[Any, str], Any]  # a value and its key -> the value as its field holds it (ConfigError if it cannot)
+_CONVERTERS: dict[type, dict[str, Convert]] = {}
+
+
+def _converters(cls: type) -> dict[str, Convert]:
+    """Per field of the dataclass ``cls``, in order, the conversion of its values (made once per class)."""
+    if cls not in _CONVERTERS:
+        hints = typing.get_type_hints(cls)
+        _CONVERTERS[cls] = {f.name: _shared_section(f.metadata["section"]) if "section" in f.metadata else _converter(hints[f.name])
+                            for f in dataclasses.fields(cls)}  # fmt: skip
+    return _CONVERTERS[cls]
+
+
+def _shared_section(section: type) -> Convert:
+    """A field holding a root section: a reference to it (``${population}``, which :func:`_share`
+    fills) or its settings."""
+    return lambda v, key: v if isinstance(v, str) else _typed(section, v, key)
+
+
+def _converter(kind: Any) -> Convert:
+    """The conversion of values of the type ``kind``, as OmegaConf converts them (an int for a
+    float, a string for an Enum); a missing value (``???``) stays."""
+    convert = _conversion(kind)
+    return lambda v, key: v if v.__class__ is str and v == MISSING else convert(v, key)
+
+
+def _conversion(kind: Any) -> Convert:
     if kind is Any:
-        return _plain(value)
+        return lambda v, key: _plain(v)
     if typing.get_origin(kind) in (typing.Union, types.UnionType):
-        if value is None and type(None) in typing.get_args(kind):
-            return None
-        (kind,) = [k for k in typing.get_args(kind) if k is not type(None)]
-        return _value(kind, value, key)
+        nullable = type(None) in typing.get_args(kind)
+        (inner,) = [_converter(k) for k in typing.get_args(kind) if k is not type(None)]
+        return lambda v, key: None if v is None and nullable else inner(v, key)
     if dataclasses.is_dataclass(kind):
-        return _typed(kind, value, key)
+        return lambda v, key: _typed(kind, v, key)
     if isinstance(kind, type) and issubclass(kind, enum.Enum):
-        return _enum(kind, value, key)
+        return lambda v, key: _enum(kind, v, key)
     if typing.get_origin(kind) is list:
-        if not isinstance(value, (list, tuple)):
-            raise ConfigError(f"{key}: must be a list, got {value!r}")
-        (item,) = typing.get_args(kind)
-        return [_value(item, v, f"{key}[{i}]") for i, v in enumerate(value)]
+        item = _converter(typing.get_args(kind)[0])
+        return lambda v, key: [item(x, f"{key}[{i}]") for i, x in enumerate(_listed(v, key))]
     ok, what = _SCALARS[kind]
-    if not ok(value):
-        raise ConfigError(f"{key}: must be {what}, got {value!r}")
-    return float(value) if kind is float else value
+    as_kind = float if kind is float else (lambda v: v)
+    return lambda v, key: as_kind(v) if ok(v) else _refuse(key, what, v)
 
 
-_SCALARS: dict[Any, tuple[Any, str]] = {
-    bool: (lambda v: isinstance(v, bool), "true or false"),
-    int: (lambda v: isinstance(v, int) and not isinstance(v, bool), "a whole number"),
-    float: (lambda v: isinstance(v, (int, float)) and not isinstance(v, bool), "a number"),
+_SCALARS: dict[Any, tuple[Callable[[Any], bool], str]] = {
+    bool: (lambda v: v.__class__ is bool, "true or false"),
+    int: (lambda v: isinstance(v, int) and v.__class__ is not bool, "a whole number"),
+    float: (lambda v: isinstance(v, (int, float)) and v.__class__ is not bool, "a number"),
     str: (lambda v: isinstance(v, str), "a string"),
 }
+
+
+def _refuse(key: str, what: str, value: Any) -> Any:
+    raise ConfigError(f"{key}: must be {what}, got {value!r}")
+
+
+def _listed(value: Any, key: str) -> list | tuple:
+    if not isinstance(value, (list, tuple)):
+        raise ConfigError(f"{key}: must be a list, got {value!r}")
+    return value
 
 
 def _enum(kind: type[enum.Enum], value: Any, key: str) -> enum.Enum:
@@ -518,28 +547,15 @@ def _enum(kind: type[enum.Enum], value: Any, key: str) -> enum.Enum:
 
 def _plain(value: Any) -> Any:
     """A copy of nested dicts and lists (the settings of a kind without a schema)."""
-    if isinstance(value, Mapping):
+    kind = value.__class__
+    if kind in _ATOMS:
+        return value
+    if kind is dict or (kind is not list and kind is not tuple and isinstance(value, Mapping)):
         return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
+    if kind is list or kind is tuple:
         return [_plain(v) for v in value]
     return value
 
 
 def _join(key: str, name: str) -> str:
     return f"{key}.{name}" if key else str(name)
-
-
-_FIELDS: dict[type, tuple[dataclasses.Field, ...]] = {}
-_HINTS: dict[type, dict[str, Any]] = {}
-
-
-def _fields(cls: type) -> tuple[dataclasses.Field, ...]:
-    if cls not in _FIELDS:
-        _FIELDS[cls] = dataclasses.fields(cls)
-    return _FIELDS[cls]
-
-
-def _hints(cls: type) -> dict[str, Any]:
-    if cls not in _HINTS:
-        _HINTS[cls] = typing.get_type_hints(cls)
-    return _HINTS[cls]
