@@ -56,16 +56,16 @@ class ZrpGaLauncherConf:
 
 
 def _store() -> None:
-    """``hydra/launcher=zrp_ga`` in Hydra's ConfigStore, once: hydra-core 1.3's plugin scan runs
-    this module again where it was imported before (from the source tree, or by ``zrp-ga``), and
-    1.4 warns about a name stored twice (1.5 refuses it)."""
+    """``hydra/launcher=zrp_ga`` in Hydra's ConfigStore. hydra-core 1.3's plugin scan runs this
+    module a second time where it was imported before (from the source tree, or by ``zrp-ga``):
+    its class is then a new one, which the stored node must hold (a composed config is pickled
+    with it), so it is stored again; 1.4 imports it once, and would warn about a name stored
+    twice without ``replace``."""
+    import inspect
+
     cs = ConfigStore.instance()
-    try:
-        if "zrp_ga.yaml" in cs.list("hydra/launcher"):
-            return
-    except OSError:  # no launcher stored yet
-        pass
-    cs.store(group="hydra/launcher", name="zrp_ga", node=ZrpGaLauncherConf, provider="zrp_ga")
+    replace = {"replace": True} if "replace" in inspect.signature(cs.store).parameters else {}  # hydra-core 1.4
+    cs.store(group="hydra/launcher", name="zrp_ga", node=ZrpGaLauncherConf, provider="zrp_ga", **replace)
 
 
 _store()
