@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from zrp_ga.compensation import writing
 from zrp_ga.compensation.arms import Arms
 from zrp_ga.compensation.program import Program
 from zrp_ga.model import kinematics, so3
@@ -68,21 +69,15 @@ class Compensation:
 
     def tables(self):
         """``joints.csv`` and ``targets.csv`` as pandas DataFrames (:func:`zrp_ga.compensation.writing.tables`)."""
-        from zrp_ga.compensation import writing
-
         return writing.tables(self)
 
     def summary(self) -> dict[str, Any]:
         """What ``compensation.json`` holds (:func:`zrp_ga.compensation.writing.summary`)."""
-        from zrp_ga.compensation import writing
-
         return writing.summary(self)
 
     def write(self, out: str | Path) -> dict[str, Path]:
         """``joints.csv``, ``targets.csv`` and ``compensation.json`` in ``out``
         (:func:`zrp_ga.compensation.writing.write`)."""
-        from zrp_ga.compensation import writing
-
         return writing.write(self, out)
 
 

@@ -13,7 +13,7 @@ gives it in the base frame), in the robot's base frame otherwise.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,8 +22,7 @@ from zrp_ga.compensation import configuration, frames, orientation
 from zrp_ga.core.checks import ROTVEC
 from zrp_ga.io.measurements import ANGLE, LENGTH
 
-if TYPE_CHECKING:
-    from zrp_ga.compensation.result import Compensation
+Compensation = Any  # a zrp_ga.compensation.result.Compensation (which imports this module to write itself)
 
 Array = NDArray[np.float64]
 FILES = {"joints": "joints.csv", "targets": "targets.csv", "summary": "compensation.json"}
