@@ -45,7 +45,8 @@ class Arms:
     calibration's (first) measured tool point in the hand frame (None: the calibration measured
     the end point itself); whether the calibration measured ``orientations``; ``frames``: how the
     base and the flange were set up (:mod:`zrp_ga.compensation.setups`) with the sizes of what
-    the data leave open."""
+    the data leave open; ``noise_mm``: the calibration's measurement noise per coordinate as its
+    residual shows it (RMS point distance over sqrt 3; None: not known)."""
 
     calibrated: ZRPRobot
     nominal: ZRPRobot
@@ -56,6 +57,7 @@ class Arms:
     orientations: bool = True
     measured: bool = False
     frames: dict = dataclasses.field(default_factory=dict)
+    noise_mm: float | None = None
 
     def noted(self, *notes: str) -> Arms:
         return dataclasses.replace(self, notes=(*self.notes, *notes))
@@ -105,7 +107,15 @@ def _from_calibration(calibration: Any) -> Arms:
     measured = base is not None
     orient = bool(getattr(task.problem.data, "R", None) is not None) if measured else True
     return Arms(cal, task.robot, base, "the calibration", tool=next(iter(tools.values()), None), orientations=orient,
-                measured=measured)  # fmt: skip
+                measured=measured, noise_mm=_noise(calibration.summary))  # fmt: skip
+
+
+def _noise(summary: dict) -> float | None:
+    """The measurement noise per coordinate (mm) a measured calibration's residual shows."""
+    try:
+        return float(summary["position_error_mm"]["calibration"]["calibrated"]["rms"]) / np.sqrt(3.0)
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 def _from_path(path: Path) -> Arms:
@@ -157,7 +167,7 @@ def _run_info(run: Path, arms: Arms) -> Arms:
     problem = (s.get("config") or {}).get("problem") or {}
     orientations = not (problem.get("position_only") or problem.get("use_orientation") is False)
     return dataclasses.replace(arms, nominal=nominal, base=base, tool=tool, notes=tuple(notes), orientations=orientations,
-                               measured=base is not None)  # fmt: skip
+                               measured=base is not None, noise_mm=_noise(s))  # fmt: skip
 
 
 def _robot(robot: Any, what: str) -> ZRPRobot:

@@ -60,7 +60,7 @@ from zrp_ga.compensation.ik import (  # noqa: F401 (re-exported: the public name
     solve,
     why,
 )
-from zrp_ga.compensation.program import Program, read_program, read_work_object
+from zrp_ga.compensation.program import Program, read_program, read_work_object, revolute_unit
 from zrp_ga.compensation.result import Compensation, evaluated
 from zrp_ga.core.files import writable_dir
 from zrp_ga.io.measurements import ANGLE, LENGTH
@@ -151,18 +151,18 @@ def compensate(
     arms = load_arms(calibration, nominal)
     size.check(size.of_program(program, arms.nominal.n), _name(program), say)
     arms = setups.set_base(arms, base_setup)
-    to_base, frame_source = _placement(arms, frame, work_object, work_object_frame, (length_unit, angle_unit, orientation_convention, sep, decimal))  # fmt: skip
-    locate = lambda p, unit: np.linalg.norm(frames.apply(to_base(unit), p)[0] - arms.nominal.b0[0], axis=1)
+    place = _placement(arms, frame, work_object, work_object_frame, (length_unit, angle_unit, orientation_convention, sep, decimal))  # fmt: skip
+    locate = lambda p, unit: np.linalg.norm(frames.apply(place.to_base(unit), p)[0] - arms.nominal.b0[0], axis=1)
     pr = read_program(program, arms.nominal, kind, length_unit, angle_unit, orientation_convention, sep, decimal, locate)
-    T = to_base(pr.length_unit)
+    T = place.to_base(pr.length_unit)
     arms = setups.set_flange(arms, _transform_text(probe_in_flange, pr, "probe_in_flange (--probe-in-flange)"))
-    arms = _with_tool(arms, tool, pr)
+    arms, tool_T = _with_tool(arms, tool, pr)
     orient = _orient(pr, arms, position_only)
-    arms = _notes(arms, tool, probe_in_flange, orient, frame, frame_source)
+    arms = _notes(arms, tool, tool_T, probe_in_flange, orient, place, pr)
     p, R = _targets(pr, arms, T, orient)
     tol = dict(tolerance_m=tolerance_m, tolerance_rad=tolerance_rad)
     q_nom, q_cal, reached, reasons = _solve_all(pr, arms, p, R, _first_seed(q_seed, arms.nominal, pr), tol)
-    comp = evaluated(pr, arms, q_cal, q_nom, p, R, reached, reasons, frame=frame, to_base=T, frame_source=frame_source)
+    comp = evaluated(pr, arms, q_cal, q_nom, p, R, reached, reasons, frame=frame, to_base=T, frame_source=place.source)
     _refuse_unreached(comp, unreachable)
     if out is not None:
         comp.write(out)
@@ -195,11 +195,22 @@ def _name(program: Any) -> str:
 
 
 # --- frames and tools -----------------------------------------------------------------------------
-def _placement(arms: Arms, frame: str, work_object: Any, wo_frame: str | None, reading: tuple) -> tuple[Callable[[str], Array], str]:
-    """The program's frame in the base frame (4, 4), as a function of the program's length unit
-    (a work object given as numbers is in it), and what the frame is."""
+@dataclasses.dataclass(frozen=True)
+class Placement:
+    """Where the program's targets are: ``to_base`` the program's frame in the base frame (4, 4)
+    as a function of the program's length unit (a work object given as numbers is in it), what
+    the frame is, and a work object's three points (3, 3) m in its outer frame (None: none)."""
+
+    frame: str
+    to_base: Callable[[str], Array]
+    source: str
+    points: Callable[[str], Array] | None = None
+
+
+def _placement(arms: Arms, frame: str, work_object: Any, wo_frame: str | None, reading: tuple) -> Placement:
+    """The :class:`Placement` of ``frame`` (and ``work_object``, given in ``wo_frame``)."""
     if frame == "base":
-        return lambda unit: np.eye(4), "the robot's base frame"
+        return Placement(frame, lambda unit: np.eye(4), "the robot's base frame")
     wo_frame = wo_frame or (INSTRUMENT if arms.base is not None else "base")
     if wo_frame not in ("base", INSTRUMENT):
         raise ValueError(f"work_object_frame: {wo_frame!r}, expected 'instrument' or 'base'")
@@ -209,26 +220,29 @@ def _placement(arms: Arms, frame: str, work_object: Any, wo_frame: str | None, r
                          + ("and work objects " if frame == WORK_OBJECT else "") + "in the base frame")  # fmt: skip
     to_instrument = np.eye(4) if arms.base is None else frames.inverse(arms.base)
     if frame == INSTRUMENT:
-        return lambda unit: to_instrument, "the instrument's frame (the calibration's)"
+        return Placement(frame, lambda unit: to_instrument, "the instrument's frame (the calibration's)")
     outer = to_instrument if wo_frame == INSTRUMENT else np.eye(4)
-    W, said = _work_object(work_object, arms, outer, reading)
-    return (lambda unit: outer @ W(unit)), f"the work object ({said}, in the {wo_frame} frame)"
+    W, said, points = _work_object(work_object, arms, outer, reading)
+    return Placement(frame, lambda unit: outer @ W(unit), f"the work object ({said}, in the {wo_frame} frame)", points)
 
 
-def _work_object(value: Any, arms: Arms, outer: Array, reading: tuple) -> tuple[Callable[[str], Array], str]:
-    """The work object (4, 4) in its outer frame, as a function of the program's length unit."""
+def _work_object(value: Any, arms: Arms, outer: Array, reading: tuple):
+    """The work object (4, 4) in its outer frame and its three points (3, 3) m (or None), as
+    functions of the program's length unit, and what it was."""
     length_unit, angle_unit, convention, sep, decimal = reading
     if isinstance(value, str) and _numbers(value) is not None:
         v = _numbers(value)
         if len(v) != 9:
             raise ValueError(f"work_object (--work-object): {value!r}: expected nine numbers (points O, X, Y) or a file")
-        return (lambda unit: setups.work_object_transform(np.reshape(v, (3, 3)) * LENGTH[unit])), "three points O, X, Y"
+        points = lambda unit: np.reshape(v, (3, 3)) * LENGTH[unit]
+        return (lambda unit: setups.work_object_transform(points(unit))), "three points O, X, Y", points
     if isinstance(value, np.ndarray | list | tuple):
         W = setups.work_object_transform(value)
-        return (lambda unit: W), "given in memory"
+        given = np.asarray(value, dtype=float)
+        return (lambda unit: W), "given in memory", ((lambda unit: given) if given.shape == (3, 3) else None)
     locate = lambda p, unit: np.linalg.norm(frames.apply(outer, p)[0] - arms.nominal.b0[0], axis=1)
-    W, said = read_work_object(value, arms.nominal, length_unit, angle_unit, convention, sep, decimal, locate)
-    return (lambda unit: W), said
+    W, said, points = read_work_object(value, arms.nominal, length_unit, angle_unit, convention, sep, decimal, locate)
+    return (lambda unit: W), said, (None if points is None else lambda unit: points)
 
 
 def _numbers(text: str) -> list[float] | None:
@@ -258,14 +272,15 @@ def _transform_text(value: Any, pr: Program, what: str) -> Any:
     return frames.transform(orientation.to_matrices(angles, convention)[0], t)
 
 
-def _with_tool(arms: Arms, tool: Any, pr: Program) -> Arms:
-    """Both arms ending at ``tool`` (module docstring of :func:`compensate`)."""
+def _with_tool(arms: Arms, tool: Any, pr: Program) -> tuple[Arms, Array | None]:
+    """Both arms ending at ``tool`` (module docstring of :func:`compensate`), and the tool (4, 4)
+    in the flange frame (None: the flange)."""
     if isinstance(tool, str) and tool == "calibration":
         if arms.tool is None:
             raise ValueError(f"tool: {arms.source} carries no tool (it measured the end point itself)")
         tool = arms.tool
     T = tool_transform(_transform_text(tool, pr, "tool (--tool)"))
-    return dataclasses.replace(arms, calibrated=with_tool(arms.calibrated, T), nominal=with_tool(arms.nominal, T))
+    return dataclasses.replace(arms, calibrated=with_tool(arms.calibrated, T), nominal=with_tool(arms.nominal, T)), T
 
 
 def _orient(pr: Program, arms: Arms, position_only: bool) -> bool:
@@ -278,16 +293,25 @@ def _orient(pr: Program, arms: Arms, position_only: bool) -> bool:
     return not position_only and (pr.R is not None if pr.kind == "cartesian" else nom.n >= 6)
 
 
-def _notes(arms: Arms, tool: Any, probe_in_flange: Any, orient: bool, frame: str, frame_source: str) -> Arms:
+def _notes(arms: Arms, tool: Any, tool_T: Array | None, probe_in_flange: Any, orient: bool, place: Placement, pr: Program) -> Arms:
     """What the targets depend on that the data cannot determine, with its size."""
     notes = []
-    if arms.tool is not None and probe_in_flange is None and not (isinstance(tool, str) and tool == "calibration"):
+    measured_point = isinstance(tool, str) and tool == "calibration"
+    if arms.tool is not None and probe_in_flange is None and not measured_point:
         notes.append(setups.split_note(arms, orient and arms.orientations))
-    if orient and not arms.orientations:
-        notes.append(setups.orientation_note(arms))
-    if frame != "base":
-        notes.append(f"the targets were given in {frame_source} and mapped to the base frame; the corrected Cartesian "
-                     "targets are in " + ("the work object" if frame == WORK_OBJECT else "the base frame"))  # fmt: skip
+    if not arms.orientations and (orient or not measured_point):
+        at = np.zeros(3) if tool_T is None else tool_T[:3, 3]
+        off = 0.0 if measured_point or arms.tool is None else float(np.linalg.norm(at - arms.tool[:3, 3]))
+        if orient or off > 0:
+            notes.append(setups.orientation_note(arms, off))
+    if place.points is not None and pr.p is not None:
+        o, x, y = place.points(pr.length_unit)
+        axis = (x - o) / np.linalg.norm(x - o)
+        apart = min(np.linalg.norm(x - o), np.linalg.norm((y - o) - np.dot(y - o, axis) * axis))
+        notes.append(setups.work_object_note(apart, float(np.linalg.norm(pr.p, axis=1).max()), arms.noise_mm))
+    if place.frame != "base":
+        notes.append(f"the targets were given in {place.source} and mapped to the base frame; the corrected Cartesian "
+                     "targets are in " + ("the work object" if place.frame == WORK_OBJECT else "the base frame"))  # fmt: skip
     return arms.noted(*notes)
 
 
@@ -301,8 +325,9 @@ def _targets(pr: Program, arms: Arms, T: Array, orient: bool) -> tuple[Array, Ar
 
 # --- solving ----------------------------------------------------------------------------------------
 def _first_seed(q_seed: ArrayLike | None, robot: ZRPRobot, pr: Program) -> Array:
-    """The first seed (n,) in SI units, from the program's joint units (default: the middle of
-    the joint limits)."""
+    """The first seed (n,) in SI units, from the program's joint units, or from its own values
+    when nothing said them (:func:`zrp_ga.compensation.program.revolute_unit`); default: the
+    middle of the joint limits."""
     if q_seed is None:
         return robot.joint_limits.mean(axis=1)
     try:
@@ -311,7 +336,8 @@ def _first_seed(q_seed: ArrayLike | None, robot: ZRPRobot, pr: Program) -> Array
         q = np.array([np.nan])
     if q.shape != (robot.n,) or not np.all(np.isfinite(q)):
         raise ValueError(f"q_seed (--seed-q): expected {robot.n} finite joint values ({pr.angle_unit}, {pr.length_unit}), got {q_seed!r}")
-    return q * np.where(robot.prismatic, LENGTH[pr.length_unit], ANGLE[pr.angle_unit])
+    unit = pr.angle_unit if pr.angle_unit_found else revolute_unit(q, robot)
+    return q * np.where(robot.prismatic, LENGTH[pr.length_unit], ANGLE[unit])
 
 
 def _solve_all(pr: Program, arms: Arms, p: Array, R: Array | None, first: Array, tol: dict):

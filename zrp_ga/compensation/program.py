@@ -56,7 +56,7 @@ class Program:
     configurations or None); each row's place ``where`` ("line 7" of a file, "row 3" of a
     table), the joint column names (without units), the units it was written in, its orientation
     ``convention`` and its own orientation numbers ``angles`` (M, 3) rad or (M, 4), so that the
-    corrected ones are written beside them."""
+    corrected ones are written beside them; whether anything said its angle unit."""
 
     kind: str
     q: Array | None
@@ -70,6 +70,7 @@ class Program:
     convention: str | None = None
     angles: Array | None = None
     orientation_unit: str = "rad"
+    angle_unit_found: bool = True  # False: nothing in the program or the settings said its angle unit (a seed's is then found from it)
 
     @property
     def M(self) -> int:
@@ -124,9 +125,12 @@ def read_program(
         check_joints(q, robot, cols.joint_names, cells, {"length": length, "angle": joint})
     p = None if p_file is None else p_file * LENGTH[length]
     R, angles, unit = _orientation(cells, cols, number, angle_unit, joint)
+    found = cols.joints is not None or angle_unit != AUTO
+    if not found and angles is not None and orientation.is_angle(cols.convention):
+        joint, found = unit, True  # no joint columns: the program's angles are in its orientations' unit
     names = cols.joint_names or tuple(f"q{i + 1}" for i in range(robot.n))
     kind = "cartesian" if cols.position is not None else "joints"
-    return Program(kind, q, p, R, cells.where, cells.source, names, length, joint, cols.convention, angles, unit)
+    return Program(kind, q, p, R, cells.where, cells.source, names, length, joint, cols.convention, angles, unit, found)
 
 
 def check_settings(kind: Any, length_unit: Any, angle_unit: Any, convention: Any) -> None:
@@ -196,15 +200,15 @@ def columns_of(cells: Cells, robot: ZRPRobot, kind: str, convention: str | None)
     """What the columns hold (module docstring); ValueError for a column given twice (with and
     without a unit), missing columns, a kind the columns do not have."""
     names = list(cells.raw.columns)
-    base = {n: split_unit(n)[0] for n in names}
+    convention = convention or orientation.implied({split_unit(n)[0] for n in names})
+    quaternion = convention == orientation.QUATERNION
+    base = {n: _key(n, quaternion) for n in names}
     for n in names:
         twins = [m for m in names if base[m] == base[n]]
         if len(twins) > 1:
             raise ValueError(f"{cells.source}: columns {', '.join(map(repr, twins))} both give {base[n]!r}; which to use "
                              "cannot be told: remove all but one")  # fmt: skip
     by_base = {base[n]: n for n in names}
-    convention = convention or orientation.implied(set(by_base))
-    quaternion = convention == orientation.QUATERNION
     joints, joint_names = _joint_columns(cells, robot, by_base, quaternion)
     has_xyz = all(c in by_base for c in "xyz")
     if kind == "cartesian" and not has_xyz:
@@ -221,6 +225,13 @@ def columns_of(cells: Cells, robot: ZRPRobot, kind: str, convention: str | None)
     return Columns(joints, joint_names, position, rot, convention, units)
 
 
+def _key(name: str, quaternion: bool) -> str:
+    """What a column gives: its name without the unit; a quaternion's q1..q4 (no unit) apart from
+    joint columns q1_deg .."""
+    base, unit = split_unit(name)
+    return f"quaternion {base}" if quaternion and unit is None and base in orientation.NAMED[orientation.QUATERNION] else base
+
+
 def _typed(joints: tuple[str, ...] | None, robot: ZRPRobot, t: str) -> tuple[str, ...] | None:
     return None if joints is None else tuple(c for c, jt in zip(joints, robot.joint_types) if jt == t) or None
 
@@ -228,7 +239,7 @@ def _typed(joints: tuple[str, ...] | None, robot: ZRPRobot, t: str) -> tuple[str
 def _joint_columns(cells: Cells, robot: ZRPRobot, by_base: dict, quaternion: bool):
     """The joint columns (actual names) and their base names: ``q1 .. qn`` or the robot's joint
     names; with a quaternion, ``q`` columns with a unit or the joint names."""
-    qs = [b for b in by_base if b.startswith("q") and b[1:].isdigit() and not (quaternion and split_unit(by_base[b])[1] is None)]
+    qs = [b for b in by_base if b.startswith("q") and b[1:].isdigit()]
     if qs:
         want = [f"q{i + 1}" for i in range(robot.n)]
         if sorted(qs) != sorted(want):
@@ -245,6 +256,8 @@ def _orientation_columns(cells: Cells, by_base: dict, convention: str | None) ->
     angles), None when the program has none; ValueError for a partial group or rx, ry, rz
     without a stated convention."""
     own = orientation.columns(convention) if convention else ()
+    if convention == orientation.QUATERNION:
+        by_base = {k.removeprefix("quaternion "): v for k, v in by_base.items() if k.startswith("quaternion ")}
     groups = [own] + ([orientation.GENERIC] if convention is None or orientation.is_angle(convention) else [])
     for group in groups:
         present = [c for c in group if c in by_base]
@@ -337,8 +350,15 @@ def joint_unit_of(cells: Cells, cols: Columns, robot: ZRPRobot, q_file: Array | 
         return unit
     if setting != AUTO or q_file is None:
         return "rad" if setting == AUTO else setting
+    return revolute_unit(q_file, robot)
+
+
+def revolute_unit(q_file: Array, robot: ZRPRobot) -> str:
+    """``deg`` when a revolute joint value of ``q_file`` (M, n) lies beyond any turn in radians
+    (:func:`zrp_ga.io.measurements.resolve_joint_unit`), or outside its joint's limits in
+    radians but inside them in degrees; else ``rad``."""
     rev = ~robot.prismatic
-    v, lim = q_file[:, rev], robot.joint_limits[rev]
+    v, lim = np.atleast_2d(q_file)[:, rev], robot.joint_limits[rev]
     if measurements.resolve_joint_unit(v, robot, AUTO) == "deg":
         return "deg"
     outside = lambda s: bool(np.any((v * s < lim[:, 0] - 1e-12) | (v * s > lim[:, 1] + 1e-12)))
@@ -425,10 +445,11 @@ def _array_program(program: Any, robot: ZRPRobot, kind: str, convention: str | N
 
 # --- work objects from files --------------------------------------------------------------------------
 def read_work_object(source: Any, robot: ZRPRobot, length_unit: str, angle_unit: str, convention: str | None,
-                     sep: str, decimal: str, locate: Locate) -> tuple[Array, str]:  # fmt: skip
+                     sep: str, decimal: str, locate: Locate) -> tuple[Array, str, Array | None]:  # fmt: skip
     """A work object (4, 4) m from a file or table: three rows O, X, Y of ``x, y, z`` (in that
     order, or named in a column ``point``), or one row of a pose (``x, y, z`` and an
-    orientation's columns); and what it was (for the record). Units as a program's
+    orientation's columns); what it was (for the record) and its three points (3, 3) m (None
+    for a pose). Units as a program's
     (:func:`read_program`), ``locate`` as there, for the points' frame."""
     cells = table_cells(source, sep, "work object")
     cols = columns_of(cells, robot, "cartesian", convention)
@@ -440,12 +461,12 @@ def read_work_object(source: Any, robot: ZRPRobot, length_unit: str, angle_unit:
         if len(p) != 1:
             raise ValueError(f"{cells.source}: a work object given as a pose is one row, got {len(p)}")
         R, _, _ = _orientation(cells, cols, lambda c: column(cells, c, decimal), angle_unit, "rad")
-        return frames.transform(R[0], p[0]), f"the pose in {cells.source} ({length})"
+        return frames.transform(R[0], p[0]), f"the pose in {cells.source} ({length})", None
     if len(p) != 3:
         raise ValueError(f"{cells.source}: a work object is three points O, X, Y (or one pose with its orientation); got {len(p)} rows")
     order = _point_order(cells)
     try:
-        return frames.work_object(*p[order]), f"three points O, X, Y in {cells.source} ({length})"
+        return frames.work_object(*p[order]), f"three points O, X, Y in {cells.source} ({length})", p[order]
     except ValueError as exc:
         raise ValueError(f"{cells.source}: {exc}".replace("work object: ", "")) from None
 

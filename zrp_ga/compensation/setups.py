@@ -162,35 +162,43 @@ def _circle(data: Measurements, nominal: ZRPRobot, j: int) -> tuple[frames.Line,
 def set_flange(arms: Arms, probe_in_flange: Any) -> Arms:
     """``arms`` whose calibrated arm ends at the flange that ``probe_in_flange`` (the measured
     tool's offset (3,) m or transform (4, 4) in the flange frame) implies: ``probe
-    probe_in_flange^-1``. With positions only, the probe's orientation was not measured: the
-    calibrated hand's orientation is the flange's, and only the offset is used."""
+    probe_in_flange^-1``. With positions only, the probe's orientation was not measured and the
+    calibrated hand's orientation is the flange's: the flange is the probe's point moved back by
+    the offset, and the given rotation is the probe's orientation in it (taken as given)."""
     T = tool_transform(probe_in_flange, "probe_in_flange")
     if T is None:
         return arms
     if arms.tool is None:
         raise ValueError(f"probe_in_flange: {arms.source} measured no tool point on the flange (it has no tool to split)")
-    notes = []
-    if not arms.orientations:
-        if frames.pose_difference(np.eye(4), frames.transform(T[:3, :3], np.zeros(3)), 0.0)[1] > 1e-12:
-            notes.append("probe_in_flange: the calibration measured positions only, so the probe's rotation in the flange is "
-                         "not used (the calibrated hand's orientation is the flange's)")  # fmt: skip
-        T = frames.transform(np.eye(3), T[:3, 3])
-    flange = arms.tool @ frames.inverse(T)  # the new flange in the old hand frame
+    back = T if arms.orientations else frames.transform(np.eye(3), T[:3, 3])
+    flange = arms.tool @ frames.inverse(back)  # the new flange in the old hand frame
     info = {"setup": "probe_in_flange", "moved_from_calibration_mm": float(np.linalg.norm(flange[:3, 3]) * 1e3),
             "moved_from_calibration_deg": float(np.degrees(np.linalg.norm(so3.log(flange[:3, :3]))))}  # fmt: skip
     cal = with_tool(arms.calibrated, flange)
-    return dataclasses.replace(arms, calibrated=cal, tool=T, frames={**arms.frames, "flange": info}).noted(*notes)
+    return dataclasses.replace(arms, calibrated=cal, tool=T, frames={**arms.frames, "flange": info})
+
+
+def link_scale(arms: Arms) -> tuple[float, float]:
+    """How wrong a link of this arm may be, as the calibration found the others: the RMS change
+    (mm) of the body vectors between the first and the last joint, and the largest turn (deg) it
+    gave an axis, calibrated against nominal in the base frame."""
+    cal, nom = arms.calibrated, arms.nominal
+    mm = float(np.sqrt(np.mean(np.sum((cal.b0[1:-1] - nom.b0[1:-1]) ** 2, axis=1))) * 1e3) if cal.n > 1 else 0.0
+    cos = np.clip(np.sum(cal.u0 * nom.u0, axis=1), -1.0, 1.0)
+    return mm, float(np.degrees(np.arccos(cos).max()))
 
 
 def flange_split(arms: Arms) -> tuple[float, float]:
-    """How far (mm, deg) the calibrated flange lies from the nominal one at the end of the last
-    link (the last body vectors and the hand orientations compared in the base frame): what
-    flange targets may be off by when the split between the last link and the probe is not
-    known."""
+    """What flange targets may be off by (mm, deg) when the split between the last link and the
+    measured tool is not known: the larger of how far the calibrated flange lies from the nominal
+    one at the end of the last link (the last body vectors and hand orientations in the base
+    frame) and how wrong a link typically is (:func:`link_scale`): the data cannot tell the last
+    link's error from the tool's."""
     cal, nom = arms.calibrated, arms.nominal
     mm = float(np.linalg.norm(cal.b0[-1] - nom.b0[-1]) * 1e3)
     deg = float(np.degrees(np.linalg.norm(so3.log(cal.R_h0 @ nom.R_h0.T))))
-    return mm, deg
+    link_mm, link_deg = link_scale(arms)
+    return max(mm, link_mm), max(deg, link_deg)
 
 
 def split_note(arms: Arms, orient: bool) -> str:
@@ -198,19 +206,34 @@ def split_note(arms: Arms, orient: bool) -> str:
     mm, deg = flange_split(arms)
     angle = f" and {deg:.3g} deg" if orient else ""
     return (f"flange targets: the data do not determine how the calibrated end splits into the last link and the measured "
-            f"tool (they trade off exactly); the calibrated flange lies {mm:.3g} mm{angle} from the nominal one at the end of "
-            "the last link, and flange targets may be off by up to about that much; give the probe's transform in the flange "
-            "(probe_in_flange, --probe-in-flange) to remove it, or give targets of the measured point (tool='calibration', "
-            "--tool calibration)")  # fmt: skip
+            f"tool (they trade off exactly); flange targets may be off by about {mm:.3g} mm{angle} (the calibrated flange's "
+            "distance from the nominal one, or a link's typical correction, whichever is larger); give the probe's "
+            "transform in the flange (probe_in_flange, --probe-in-flange) to remove it, or give targets of the measured "
+            "point (tool='calibration', --tool calibration)")  # fmt: skip
 
 
-def orientation_note(arms: Arms) -> str:
-    """What orientation targets of a positions-only calibration leave open."""
-    turned = np.degrees(np.arccos(np.clip(np.sum(arms.calibrated.u0 * arms.nominal.u0, axis=1), -1.0, 1.0))).max()
+def orientation_note(arms: Arms, tool_offset_m: float) -> str:
+    """What orientation targets of a positions-only calibration leave open, and what positions
+    of a point ``tool_offset_m`` from the measured one carry of it."""
+    _, deg = link_scale(arms)
+    far = (f"; positions of a point {tool_offset_m * 1e3:.3g} mm from the measured one carry about {np.radians(deg) * tool_offset_m * 1e3:.3g} mm "
+           "of it" if tool_offset_m > 1e-6 else "")  # fmt: skip
     return ("orientations: the calibration measured positions only, so the hand's orientation is not identified (the "
-            "calibrated model keeps the nominal hand on the calibrated axes, which it turned by up to "
-            f"{turned:.3g} deg); orientation targets keep the nominal hand's error, not known from the data; measure "
-            "orientations (a 6D probe) or compensate positions only (position_only, --position-only)")  # fmt: skip
+            "calibrated model keeps the nominal hand on the calibrated axes); orientation targets keep the nominal hand's "
+            f"error, about {deg:.3g} deg if it is as wrong as an axis was (the largest turn the calibration gave one){far}; measure orientations (a "
+            "6D probe) or compensate positions only (position_only, --position-only)")  # fmt: skip
+
+
+def work_object_note(points_apart_m: float, reach_from_origin_m: float, noise_mm: float | None) -> str:
+    """How much the errors of three measured points move targets in the work object: an error
+    ``e`` (per coordinate) in O moves them by ``e``, in X and Y turns them by about ``sqrt 2 e /
+    d`` (``d`` how far apart the points are), so a target ``r`` from O moves by about ``e sqrt(1
+    + 2 (r / d)^2)``."""
+    k = float(np.sqrt(1.0 + 2.0 * (reach_from_origin_m / points_apart_m) ** 2))
+    size = f" (about {k * noise_mm:.3g} mm for points measured as the calibration's, e = {noise_mm:.3g} mm)" if noise_mm else ""
+    return (f"work object: three points {points_apart_m * 1e3:.4g} mm apart (the least of |X - O| and Y's distance from the x "
+            f"axis) place targets up to {reach_from_origin_m * 1e3:.4g} mm from O; an error e in the points moves them by "
+            f"about {k:.3g} e{size}; points farther apart, or measured several times, lower it")  # fmt: skip
 
 
 # --- work objects ---------------------------------------------------------------------------------------

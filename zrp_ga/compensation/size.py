@@ -61,7 +61,10 @@ def of_program(program: Any, joints: int) -> Size:
         rows = budget.file_rows(Path(program))
         columns = _header_columns(Path(program))
         return Size(rows, columns, joints, None)
-    shape = np.shape(program) if isinstance(program, (np.ndarray, list, tuple)) else None
+    try:
+        shape = np.shape(program) if isinstance(program, (np.ndarray, list, tuple)) else None
+    except ValueError:  # rows of different lengths: the reader names them
+        shape = (len(program),)
     if shape:
         return Size(shape[0], 0, joints, len(shape) > 1 and shape[1] != joints)
     if isinstance(program, dict):
