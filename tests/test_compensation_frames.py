@@ -228,3 +228,30 @@ def test_targets_in_a_work_object_measured_as_three_points(tmp_path):
     k = np.sqrt(1 + 2 * (r / d) ** 2)
     note = next(n for n in c.summary()["notes"] if n.startswith("work object"))
     assert f"about {k:.3g} e (about {k * 0.02:.3g} mm for points measured as the calibration's" in note
+
+
+def test_command_line_with_the_mount_in_the_programs_units(tmp_path, capsys):
+    """zrp-ga-compensate with a KUKA program in mm and degrees and --probe-in-flange in the same
+    units and convention (x, y, z, A, B, C): flange targets reached exactly by the true arm."""
+    from zrp_ga.cli.compensate import main
+
+    table = true_table(np.random.default_rng(6))
+    run = run_dir(tmp_path, table)
+    q = program(np.random.default_rng(10), 4)
+    T = np.array([dh_fk(CELL, qk) for qk in q])
+    abc = Rotation.from_matrix(T[:, :3, :3]).as_euler("ZYX", degrees=True)
+    rows = [[*(t[:3, 3] * 1e3), *a, *np.degrees(qk)] for t, a, qk in zip(T, abc, q)]
+    head = "x_mm,y_mm,z_mm,A_deg,B_deg,C_deg," + ",".join(f"q{i}_deg" for i in range(1, 7))
+    (tmp_path / "prog.csv").write_text("\n".join([head, *(",".join(map(repr, map(float, r))) for r in rows)]) + "\n")
+    mount = [*(PROBE[:3, 3] * 1e3), *Rotation.from_matrix(PROBE[:3, :3]).as_euler("ZYX", degrees=True)]
+    code = main([str(run), str(tmp_path / "prog.csv"), "--probe-in-flange", ",".join(map(repr, map(float, mount))),
+                 "-o", str(tmp_path / "out")])  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0 and "compensated 4 of 4 poses" in out and "(mm, deg, ZYX)" in out
+    import pandas as pd
+
+    joints = pd.read_csv(tmp_path / "out" / "joints.csv")
+    base = Rz(DELTA) @ Tz(EPS)
+    for k in range(len(q)):
+        got = np.linalg.inv(base) @ dh_fk(table, np.radians(joints.loc[k, [f"q{i}_deg" for i in range(1, 7)]].to_numpy(float)))
+        assert np.linalg.norm(got[:3, 3] - T[k, :3, 3]) < 1e-8

@@ -185,3 +185,23 @@ def test_python_callers_get_the_argument_named(what, settings, error, message):
     with pytest.raises(error) as info:
         call_api(settings)
     assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_size_estimate_by_hand_and_said_before_the_work(tmp_path, monkeypatch):
+    """200,000 rows of 10 columns, 6 joints: 1.25 x (160 B x 2e6 cells + 3000 B x 2e5 rows) =
+    1.15 GB, and 3 ms x 6 joints x 2e5 rows = 1 h (one solve a row) to 2 h (two); a file's rows
+    are counted from its size; a long one is announced through ``say`` before any row is solved."""
+    from zrp_ga.compensation import size
+
+    s = size.Size(200_000, 10, 6, None)
+    assert s.memory() == pytest.approx(1.25 * (160 * 2e6 + 3000 * 2e5))
+    assert s.seconds() == pytest.approx((3600.0, 7200.0))
+    (tmp_path / "prog.csv").write_text(_csv("q1,q2,q3,q4,q5,q6", Q.tolist() * 100))
+    est = size.of_program(tmp_path / "prog.csv", 6)
+    assert (est.columns, est.joints) == (6, 6) and abs(est.rows - 301) <= 3
+    said = []
+    monkeypatch.setattr(size, "LONG_S", 0.0)
+    monkeypatch.setattr("zrp_ga.compensation.compensate.read_program", lambda *a, **k: said.append("read") or 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        call_api({"program": tmp_path / "prog.csv", "say": said.append})
+    assert said[0].startswith(f"{tmp_path / 'prog.csv'}: about {est.rows} rows will take about") and said[1] == "read"

@@ -124,9 +124,10 @@ def compensate(
     lead to is tried from ``q_seed``, then from a few random configurations (seeded by the row:
     the same every time); give seeds where the branch matters.
 
-    ``tool``: an offset (3,) m or a transform (4, 4) in the flange frame, a text of three
-    numbers in the program's length unit, or ``"calibration"``: the point the calibration
-    measured (a run's first tool); default: the flange. ``unreachable``: ``"error"`` (a
+    ``tool``: an offset (3,) m or a transform (4, 4) in the flange frame, a text of numbers in
+    the program's units and orientation convention (``"x, y, z"`` or with the orientation's
+    three angles, or four for a quaternion), or ``"calibration"``: the point the calibration
+    measured (a run's first tool); default: the flange. ``probe_in_flange`` takes the same forms. ``unreachable``: ``"error"`` (a
     ValueError naming the first target not reached, its line and why) or ``"keep"`` (such rows
     are kept, empty and named in ``status``). ``out``: a directory to write ``joints.csv``,
     ``targets.csv`` and ``compensation.json`` into, checked before any work. ``say``: where a

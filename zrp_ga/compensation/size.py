@@ -9,9 +9,11 @@ and per row about ``ROW_BYTES`` (the joint values, targets, rotations and soluti
 the two output tables as pandas columns), times the run budget's margin. Time: ``SOLVE_S`` per
 joint and inverse-kinematics solve, one solve per row for a joint program and two for a
 Cartesian one (the nominal, then the calibrated arm), measured on a loaded 2-core machine
-(PUMA 560: 25 ms a row for a joint program); rows whose seeds do not lead to their target are
-solved again from up to :data:`zrp_ga.compensation.ik.RESTARTS` other starts, so a Cartesian
-program without seeds may take several times the estimate.
+(PUMA 560, joint program: 25 ms a row at a load average of 7; the UR10's series C: 10 ms a row
+at a lower load); a file's kind is not known before it is read, so its estimate spans both;
+rows whose seeds do not lead to their target are solved again from up to
+:data:`zrp_ga.compensation.ik.RESTARTS` other starts, so a Cartesian program without seeds may
+take several times the estimate.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from zrp_ga.run import budget
 
 log = logging.getLogger(__name__)
 ROW_BYTES = 3000  # arrays and output columns of one row, float64, for a 6-joint arm (grows with the joints)
-SOLVE_S = 4e-3  # per joint and solve
+SOLVE_S = 3e-3  # per joint and solve
 LONG_S = 30.0  # a compensation estimated to take longer is announced before it starts
 
 
@@ -48,10 +50,10 @@ class Size:
         text = budget.CELL_BYTES * self.rows * self.columns
         return budget.MARGIN * (text + ROW_BYTES * self.rows * max(self.joints, 6) / 6)
 
-    def seconds(self) -> float:
-        """Seconds it takes, roughly (module docstring)."""
-        solves = 1 if self.cartesian is False else 2
-        return SOLVE_S * self.joints * solves * self.rows
+    def seconds(self) -> tuple[float, float]:
+        """Seconds it takes, roughly, at least and at most (module docstring)."""
+        one = SOLVE_S * self.joints * self.rows
+        return (2 * one if self.cartesian else one), (one if self.cartesian is False else 2 * one)
 
 
 def of_program(program: Any, joints: int) -> Size:
@@ -102,11 +104,11 @@ def check(size: Size, source: str, say: Callable[[str], None] | None = None, ava
     than :data:`LONG_S` through ``say`` (default: the log, as a warning)."""
     need = size.memory()
     have = budget.available_bytes() if available is None else available
-    t = size.seconds()
+    low, high = size.seconds()
+    took = duration(low) if low == high else f"{duration(low)} to {duration(high)}"
     if need > have:
         raise ValueError(f"program: {source}: about {size.rows} rows would need about {human(need)} of memory "
-                         f"({duration(t)} or more), this process may use {human(have)}: split the program into "
+                         f"(and {took}), this process may use {human(have)}: split the program into "
                          f"smaller files (or set {budget.ENV} to allow more)")  # fmt: skip
-    if t > LONG_S:
-        what = f"{source}: about {size.rows} rows will take about {duration(t)} or more ({human(need)} of memory)"
-        (say or log.warning)(what)
+    if high > LONG_S:
+        (say or log.warning)(f"{source}: about {size.rows} rows will take about {took} ({human(need)} of memory)")
