@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -89,7 +90,8 @@ def _compensation_rows(folder: Path) -> list[tuple[str, str, str, str]]:
     for k, case in enumerate(module.CASES):
         where = folder / str(k)
         err, code = module.run_case(case, where)
-        args = " ".join([*(f"{a}={b}" for a, b in case.env), "zrp-ga-compensate", *(a.replace("{dir}", "DIR") for a in case.args)])
+        args = " ".join([*(f"{a}={b}" for a, b in case.env), "zrp-ga-compensate",
+                         *(shlex.quote(a.replace("{dir}", "DIR")) for a in case.args)])  # fmt: skip
         rows.append((case.kind, case.what, args, f"{err.strip().replace(str(where), 'DIR')} (exit {code})"))
     for what, settings, error, _ in module.API_CASES:
         try:
