@@ -574,6 +574,8 @@ def write_all(
              "zrp": out / f"{stem}.yaml", "frames": out / f"{stem}_frames.yaml"}
     to_urdf(robot, paths["urdf"], *((base, tool) if frames_in_urdf else (None, None)))
     like = nominal_tables(nominal) if nominal is not None else _source_tables(robot.source)
+    if like is not None and like["dh"].joint_types != robot.joint_types:
+        like = None  # a source of another arm: the tables' own rules
     mismatches = tables(robot, like=like)  # to_dh(robot, convention, like=...) of each
     for convention, title in (("dh", "Standard DH"), ("mdh", "Modified DH")):
         table, mismatch = mismatches[convention]
@@ -599,7 +601,7 @@ def write_all(
     if ros_calibration.is_ur(robot):
         paths["ur_kinematics"] = out / f"{stem}_default_kinematics.yaml"
         ros_calibration.write_ur_kinematics(robot, paths["ur_kinematics"], None if like is None else like["dh"],
-                                            _ur_world(robot.source))  # fmt: skip
+                                            _ur_world(robot.source), table=mismatches["dh"][0])  # fmt: skip
     return paths, {k: m for k, (_, m) in mismatches.items()}
 
 

@@ -78,14 +78,16 @@ class URKinematics(NamedTuple):
     joints: Array
 
 
-def ur_kinematics(robot: ZRPRobot, like: DHTable | None = None, world: str = "base") -> URKinematics:
+def ur_kinematics(robot: ZRPRobot, like: DHTable | None = None, world: str = "base",
+                  table: DHTable | None = None) -> URKinematics:  # fmt: skip
     """The default_kinematics.yaml numbers of a UR arm (module docstring).
 
     ``like``: the nominal standard DH table (default: the table ``robot.source`` holds, if a
     standard DH one, else the arm's own :func:`zrp_ga.model.dh.to_dh` table); ``world``: the
     robot's world frame is UR's ``base`` (the controller's base: z up along axis 1, x as in UR's
     DH tables; the presets' and UR's DH tables) or ROS's ``base_link`` (REP-103: ``base``
-    turned by pi about z; an arm read from ur_description's URDF from ``base_link``).
+    turned by pi about z; an arm read from ur_description's URDF from ``base_link``); ``table``:
+    ``to_dh(robot, "dh", like=like)``'s table if already computed.
 
     >>> from zrp_ga.io import presets
     >>> k = ur_kinematics(presets.get("ur10")).kinematics
@@ -96,7 +98,7 @@ def ur_kinematics(robot: ZRPRobot, like: DHTable | None = None, world: str = "ba
         raise ValueError(f"world: {world!r}, expected one of {', '.join(WORLDS)}")
     if like is None and isinstance(robot.source, DHTable) and robot.source.convention == "dh":
         like = robot.source
-    table, _ = to_dh(robot, "dh", samples=1, like=like)
+    table = to_dh(robot, "dh", samples=1, like=like)[0] if table is None else table
     start = np.diag([-1.0, -1.0, 1.0, 1.0]) if world == "base_link" else np.eye(4)  # base_link_inertia in the world
     frames, nominal = _link_frames(table, start), None if like is None else _link_frames(like, start)
     hand = np.linalg.inv(start)
@@ -150,9 +152,9 @@ def ur_kinematics_text(k: URKinematics, name: str = "robot", comment: str = "") 
 
 
 def write_ur_kinematics(robot: ZRPRobot, path: str | Path, like: DHTable | None = None, world: str = "base",
-                        comment: str = "") -> URKinematics:  # fmt: skip
+                        comment: str = "", table: DHTable | None = None) -> URKinematics:  # fmt: skip
     """Write the arm's default_kinematics.yaml to ``path`` (:func:`ur_kinematics`,
     :func:`ur_kinematics_text`); returns the numbers."""
-    k = ur_kinematics(robot, like, world)
+    k = ur_kinematics(robot, like, world, table)
     Path(path).write_text(ur_kinematics_text(k, robot.name, comment))
     return k

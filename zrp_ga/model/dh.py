@@ -34,6 +34,10 @@ ZRP direction, so that q turns the same way). Choices where the geometry leaves 
 - last frame: standard DH puts frame n's origin at the end point and its z axis along the hand's
   z axis where DH allows; modified DH puts frame n on axis n at the foot of the perpendicular
   from the end point. ``tool`` holds the rest of the hand pose.
+
+With a nominal table (``to_dh(robot, like=nominal)``, :func:`nominal_tables`) these choices are
+the nominal's instead (:func:`_walk_like`): each row reads as the nominal row plus a small
+correction (:func:`corrections`), which a controller's DH data and a reviewer can take.
 """
 
 from __future__ import annotations
