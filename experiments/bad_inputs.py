@@ -102,9 +102,11 @@ def main() -> None:
              "Every input the programs read is checked before any work: a bad one stops `zrp-ga` with one line "
              "on stderr, exit code 2, and no run directory (a report leaves out a damaged run by name and goes on). "
              "Every file read must be a regular file (a FIFO, device or socket is refused, a symlink loop named as "
-             "one). A run that would not fit the memory this machine has available is refused with the estimate "
-             "and the setting to lower (`zrp_ga.run.budget`; the environment variable `ZRP_GA_MEMORY`, e.g. `8G`, "
-             "replaces the available amount); one estimated to take more than ten minutes is announced. "
+             "one). A run, or a sweep's largest job (once, before any job starts), that would not fit the memory "
+             "this process may use (the least of the machine's available memory, `ulimit -v` and `-d`, and the "
+             "cgroup's memory limit of a container or cluster job) is refused with the estimate, the limit that "
+             "binds and the setting to lower (`zrp_ga.run.budget`; the environment variable `ZRP_GA_MEMORY`, e.g. "
+             "`8G`, replaces the limits); one estimated to take more than ten minutes is announced. "
              "`DIR` stands for the folder of the example. Written by `python experiments/bad_inputs.py` from the "
              "cases of `tests/test_bad_inputs.py` and `tests/test_bad_inputs_more.py`, which check each of them.", "",
              "| class | example | command | what it prints |", "| --- | --- | --- | --- |"]  # fmt: skip

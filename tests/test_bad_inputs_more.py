@@ -164,6 +164,7 @@ def test_memory_estimate_bounds_the_measured_peak(tmp_path):
     import zrp_ga
 
     (tmp_path / "arm.yaml").write_text(_arm(60))
+    zrp_ga.calibrate("puma560", population={"generations": 1})  # the imports and compilations of a first run: not its data
     for robot, settings in (("puma560", {"problem": {"n_poses": 1500}, "population": {"generations": 2}}),
                             (tmp_path / "arm.yaml", {"problem": {"n_validation": 20}, "population": {"generations": 1}})):  # fmt: skip
         over = [f"robot.{'name' if robot == 'puma560' else 'file'}={robot}"]

@@ -305,3 +305,31 @@ def test_a_kind_and_an_optimiser_that_declare_nothing_are_counted_generically_an
            "on 5 pose(s) and 0 validation pose(s)" in line  # fmt: skip
     assert "optimiser toy_kind.Blind declares no size (no size() method): counted as population.mu + population.lambda_ " \
            "= 40 genomes" in line  # fmt: skip
+
+
+def test_cmaes_holds_what_it_declares():
+    """CMA-ES's declaration against tracemalloc's peak of a run on a problem that holds nothing
+    (a sphere): the ``cma`` package's matrices grow as K^2, its population's copies as lambda K."""
+    import tracemalloc
+
+    from zrp_ga.algorithms.cmaes import CMAES
+    from zrp_ga.problems.size import ProblemSize
+
+    class Sphere:
+        def __init__(self, K: int) -> None:
+            self.lower, self.upper, self.names = -np.ones(K), np.ones(K), [f"x{i}" for i in range(K)]
+
+        def costs(self, X):
+            return np.einsum("ij,ij->i", np.atleast_2d(X), np.atleast_2d(X))
+
+    CMAES({"mu": 1, "lambda_": 4, "generations": 2, "max_evals": None}, 0.3).run(Sphere(3), np.random.default_rng(0))  # imports
+    for K, lam in ((600, 10), (40, 3000)):
+        cmaes = CMAES({"mu": 1, "lambda_": lam, "generations": 3, "max_evals": None}, 0.3)
+        declared = cmaes.size(ProblemSize(K, 0, {}, 0.0, {}, 0.0, {})).held_bytes
+        tracemalloc.start()
+        try:
+            cmaes.run(Sphere(K), np.random.default_rng(0))
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+        assert peak <= declared <= 2.5 * peak, (K, lam, peak, declared)

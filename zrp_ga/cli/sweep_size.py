@@ -23,7 +23,7 @@ from typing import Any
 from hydra.core.override_parser.types import OverrideType
 from omegaconf import DictConfig, OmegaConf, open_dict
 
-BASIC_SWEEPER = "hydra._internal.core_plugins.basic_sweeper.BasicSweeper"  # compared as text, not imported
+BASIC_SWEEPER = ".BasicSweeper"  # the end of Hydra's basic sweeper's _target_ (a private module's name: not imported)
 SIZELESS = ("seed", "progress", "checkpoint_every", "objective", "resume", "selection", "crossover", "mutation",
             "inversion", "rotation", "refine")  # fmt: skip
 
@@ -43,7 +43,7 @@ def jobs(config: DictConfig) -> Iterator[tuple[str, DictConfig]]:
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     sweeper = config.hydra.sweeper
-    if str(getattr(sweeper, "_target_", "")) != BASIC_SWEEPER:
+    if not str(getattr(sweeper, "_target_", "")).endswith(BASIC_SWEEPER):
         yield "", config
         return
     params = [f"{k}={v}" for k, v in (getattr(sweeper, "params", None) or {}).items()]
