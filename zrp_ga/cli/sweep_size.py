@@ -15,6 +15,7 @@ own config is checked, and each job checks itself as it starts.
 
 from __future__ import annotations
 
+import copy
 import itertools
 import json
 from collections.abc import Iterator
@@ -49,7 +50,7 @@ def jobs(config: DictConfig) -> Iterator[tuple[str, DictConfig]]:
     params = [f"{k}={v}" for k, v in (getattr(sweeper, "params", None) or {}).items()]
     loader = GlobalHydra.instance().config_loader()
     parsed = OverridesParser.create(config_loader=loader).parse_overrides(params + list(config.hydra.overrides.task))
-    lines, varied = [], []  # every job's lines (the command line's single values, the params'); the values swept
+    own, added, varied = [], [], []  # the command line's single values (the sweep's config has them), the params', the swept
     for k, o in enumerate(parsed):
         if o.is_sweep_override() and not o.is_discrete_sweep():
             yield "", config  # a range of floats: the basic sweeper refuses it itself
@@ -59,18 +60,20 @@ def jobs(config: DictConfig) -> Iterator[tuple[str, DictConfig]]:
         if o.is_sweep_override():
             varied.append([(o, v, f"{o.get_key_element()}={s}") for v, s in zip(o.sweep_iterator(), o.sweep_string_iterator())])
         else:
-            lines.append((o, o.value(), f"{o.get_key_element()}={o.get_value_element_as_str()}"))
-    if not varied and len(lines) == len(parsed) - len(params):
+            (added if k < len(params) else own).append((o, o.value(), f"{o.get_key_element()}={o.get_value_element_as_str()}"))
+    if not varied and not added:
         yield "", config  # only what the sweep's own config has
         return
     groups = set(loader.list_groups(""))
     is_value = lambda o: o.type == OverrideType.CHANGE and o.package is None and o.key_or_group not in groups
+    options_of = lambda every: tuple(text for o, _, text in every if not is_value(o))
     composed: dict[tuple[str, ...], DictConfig] = {}
     for combo in itertools.product(*varied):
-        every = lines + list(combo)
-        options = tuple(text for o, _, text in every if not is_value(o))
-        if options not in composed:
-            composed[options] = loader.load_sweep_config(config, list(options))
+        every = added + own + list(combo)
+        options = options_of(every)
+        if options not in composed:  # the sweep's own config when it has these options (a copy: values are set on it)
+            same = options == options_of(own)
+            composed[options] = copy.deepcopy(config) if same else loader.load_sweep_config(config, list(options))
         cfg = composed[options]
         with open_dict(cfg):
             for o, value, _ in every:
@@ -81,18 +84,21 @@ def jobs(config: DictConfig) -> Iterator[tuple[str, DictConfig]]:
 
 def check(config: DictConfig) -> None:
     """Refuse the sweep of ``config`` (ValueError, one line) when its largest job does not fit
-    (:func:`zrp_ga.run.budget.check`); a file or setting that cannot be read is refused as the
-    job would refuse it."""
+    (:func:`zrp_ga.run.budget.check`). A job whose robot, problem or optimiser cannot be built
+    (a bad value, a missing file) is left to fail alone, as its job, recorded in the manifest."""
     from zrp_ga import config as schema
     from zrp_ga.run import budget
 
     robots: dict[str, Any] = {}
     worst: tuple[float, str, Any] | None = None
     for label, cfg in jobs(config):
-        key = json.dumps(OmegaConf.to_container(cfg.robot, resolve=True), sort_keys=True, default=str)
-        if key not in robots:
-            robots[key] = schema.instantiate(cfg.robot, "robot")
-        e = budget.of_config(cfg, robots[key])
+        try:
+            key = json.dumps(OmegaConf.to_container(cfg.robot, resolve=True), sort_keys=True, default=str)
+            if key not in robots:
+                robots[key] = schema.instantiate(cfg.robot, "robot")
+            e = budget.of_config(cfg, robots[key])
+        except (ValueError, OSError):
+            continue
         if worst is None or e.bytes > worst[0]:
             worst = (e.bytes, label, e)
     if worst is not None:

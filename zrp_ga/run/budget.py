@@ -114,7 +114,12 @@ def problem_size(node: Any, robot: Any) -> tuple[ProblemSize, tuple[str, ...]]:
         declared = None
     settings = _settings(node)
     if callable(declared):
-        return declared(robot, **settings), ()
+        try:
+            return declared(robot, **settings), ()
+        except TypeError as exc:  # a setting its size() does not take (its build would not either)
+            from zrp_ga.config import ConfigError
+
+            raise ConfigError(f"problem: {module}.size: {exc}") from None
     genes = _generic_genes(robot.n)
     poses, validation = _count(settings.get("n_poses"), 1), _count(settings.get("n_validation"), 0)
     note = (f"problem kind {module or target!r} declares no size (no size() beside its build): counted as a calibration "
