@@ -50,7 +50,10 @@ def jobs(config: DictConfig) -> Iterator[tuple[str, DictConfig]]:
     params = [f"{k}={v}" for k, v in (getattr(sweeper, "params", None) or {}).items()]
     loader = GlobalHydra.instance().config_loader()
     parsed = OverridesParser.create(config_loader=loader).parse_overrides(params + list(config.hydra.overrides.task))
-    own, added, varied = [], [], []  # the command line's single values (the sweep's config has them), the params', the swept
+    # the command line's single values (the sweep's config has them), the params', the values swept: (override, value, text)
+    own: list[tuple[Any, Any, str]] = []
+    added: list[tuple[Any, Any, str]] = []
+    varied: list[list[tuple[Any, Any, str]]] = []
     for k, o in enumerate(parsed):
         if o.is_sweep_override() and not o.is_discrete_sweep():
             yield "", config  # a range of floats: the basic sweeper refuses it itself

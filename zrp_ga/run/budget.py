@@ -349,12 +349,12 @@ def check(e: Estimate, available: float | Limit | None = None, what: str = "the 
     if need <= have.bytes:
         said = f"{_human(need)} of memory, {have.says}{notes}"
         if t > LONG_S:  # said on the console before the run starts, so that it can be stopped at once
-            slowest = max(e.time, key=e.time.get)
+            slowest = max(e.time, key=lambda k: e.time[k])
             log.warning("%s will take about %s (and %s); to go faster: %s", what, _duration(t), said, e.lower[slowest][1])
         else:
             log.debug("size: about %s and %s", _duration(t), said)
         return
-    top = max(e.memory, key=e.memory.get)
+    top = max(e.memory, key=lambda k: e.memory[k])
     shares = ", ".join(f"{k} {_human(v)}" for k, v in sorted(e.memory.items(), key=lambda kv: -kv[1]) if v >= 0.01 * need)
     key, advice = e.lower.get(top, (top, f"make {top} smaller"))
     hint = f" ({have.hint})" if have.hint else ""
