@@ -26,7 +26,7 @@ import numpy as np
 
 from zrp_ga import config
 from zrp_ga.algorithms import Result
-from zrp_ga.core import errors, schema
+from zrp_ga.core import errors, schema, targets
 from zrp_ga.core.schema import ConfigError, MeasuredConf
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.robot import ZRPRobot
@@ -168,7 +168,7 @@ def calibrate(
 def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, progress: bool, settings: dict) -> list[Calibration]:
     from zrp_ga.io import presets
     from zrp_ga.problems import measured
-    from zrp_ga.run import build, execute
+    from zrp_ga.run import budget, build, execute
     from zrp_ga.run.shared import Cache
     from zrp_ga.run.together import run_together
 
@@ -186,12 +186,15 @@ def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, 
     if data is not None:
         conf = schema.section(MeasuredConf, base.problem, "problem")
         calib, val = _measurements(data, arm, conf, "data"), _measurements(validation, arm, conf, "validation")
+        budget.check_config(base, arm, problem=measured.data_size(arm, conf, calib, val))  # before the work: one line
         task = measured.from_measurements(arm, calib, val, conf)
+    else:
+        budget.check_config(base, arm)  # the problem of the config, before it is built
     cache = Cache()  # the instance is the one built here, not the config's
     prepared = []
     for k, seed in enumerate(seeds):
         cfg = dataclasses.replace(copy.deepcopy(base), seed=seed)
-        seeded = task or build.instantiate(cfg.problem, "problem", robot=arm, run_seed=seed)
+        seeded = task or targets.create(cfg.problem, "problem", robot=arm, run_seed=seed)
         prepared.append(build.prepare(cfg, None if outs is None else Path(outs[k]), cache=cache, task=seeded))
     together = len(prepared) > 1 and task is not None and all(
         p.algorithm.checkpointable and not p.algorithm.draws_from_random() for p in prepared)  # the GA on one instance

@@ -37,7 +37,7 @@ import pkgutil
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from zrp_ga.core.schema import MISSING  # a value not given (OmegaConf's mark)
+from zrp_ga.core.schema import MISSING, ConfigError, setting  # MISSING: a value not given (OmegaConf's mark)
 
 SPECIAL = ("_target_", "_args_", "_partial_", "_recursive_", "_convert_")
 
@@ -56,6 +56,21 @@ def instantiate(spec: Any, *args: Any, _partial_: bool | None = None, _recursive
     if node is None or "_target_" not in node:
         raise TargetError(f"not a spec to build: a dict or dataclass with _target_, got {spec!r}")
     return _build(node, args, kwargs, _partial_, _recursive_)
+
+
+def create(spec: Any, key: str, **kwargs: Any) -> Any:
+    """The object of the config's spec ``spec`` at ``key`` (``robot``, ``problem``,
+    ``algorithm``): :func:`instantiate` as a partial (a missing setting takes the target's
+    default), called with ``kwargs``; the user's mistakes as one line: a ValueError or OSError of
+    the target raised as itself, any other failure a ConfigError naming ``key``."""
+    try:
+        return instantiate(spec, _partial_=True)(**kwargs)
+    except (ValueError, OSError):
+        raise
+    except TargetError as exc:
+        raise ConfigError(f"{key}: {exc}") from None
+    except Exception as exc:
+        raise ConfigError(f"{key}: {setting(spec, '_target_')}: {type(exc).__name__}: {exc}") from None
 
 
 def is_spec(value: Any) -> bool:

@@ -9,7 +9,7 @@ allows (``objective=over_floor`` needs a floor). Every error is a
 The config is the typed :class:`~zrp_ga.core.schema.Config` (Hydra's composition, the command
 line's, turned typed by :mod:`zrp_ga.config`; a checkpoint's, by
 :func:`~zrp_ga.core.schema.from_dict`); its robot, problem and optimiser are built from their
-``_target_`` specs by :func:`instantiate`.
+``_target_`` specs by :func:`zrp_ga.core.targets.create`.
 """
 
 from __future__ import annotations
@@ -88,7 +88,7 @@ def build(cfg: Config, out: Path | None, state: dict | None, choices: dict, cach
                 return _instance(cfg)
 
         task = cache.instance(key, limited)  # built once per instance (threadpoolctl's set-up costs ms)
-    algorithm = instantiate(cfg.algorithm, "algorithm")
+    algorithm = targets.create(cfg.algorithm, "algorithm")
     if state is not None and not algorithm.checkpointable:
         raise ConfigError(f"resume: {type(algorithm).__name__} runs keep no checkpoints")
     if cfg.objective is Objective.over_floor and isinstance(task, SelfJudging):
@@ -119,25 +119,9 @@ def _stamps(cfg: Config) -> list:
 
 
 def _instance(cfg: Config) -> Any:
-    robot = instantiate(cfg.robot, "robot")
+    robot = targets.create(cfg.robot, "robot")
     budget.check_config(cfg, robot)  # memory and time, before the problem is built (zrp_ga.run.budget)
-    return instantiate(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
-
-
-def instantiate(spec: Any, key: str, **kwargs: Any) -> Any:
-    """The object of the config's ``_target_`` spec ``spec`` (:func:`zrp_ga.core.targets.instantiate`
-    as a partial, called with ``kwargs``: a missing setting takes the target's default), with
-    the user's mistakes as one line: a ValueError or OSError of the target raised as itself, any
-    other failure a ConfigError naming ``key``."""
-    try:
-        return targets.instantiate(spec, _partial_=True)(**kwargs)
-    except (ValueError, OSError):
-        raise
-    except targets.TargetError as exc:
-        raise ConfigError(f"{key}: {exc}") from None
-    except Exception as exc:
-        name = schema.setting(spec, "_target_")
-        raise ConfigError(f"{key}: {name}: {type(exc).__name__}: {exc}") from None
+    return targets.create(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
 
 
 def _not_in_use(out: Path) -> None:
