@@ -86,13 +86,20 @@ def use_compiled(family: str, work: float) -> bool:
     chosen = mode()
     if chosen != "auto":
         return chosen == "compiled"
-    if family in _COMPILED:
+    if family in _COMPILED or "*" in _COMPILED:
         return True
     if max(_SPENT_S.get(family, 0.0), work * NUMPY_S_PER_WORK) >= _budget_s():
         _COMPILED.add(family)
         _CompileCount.count += 1  # a progress line's pace starts after this generation
         return True
     return False
+
+
+def prefer_compiled() -> None:
+    """From now on in this process (and the processes it forks), every kernel family runs
+    compiled: for a process that starts workers for many runs (zrp_ga's sweep launcher loads
+    the compiled code once, before forking them)."""
+    _COMPILED.add("*")
 
 
 def call(family: str, work: float, compiled: Callable[[], T], numpy: Callable[[], T]) -> T:
