@@ -12,8 +12,8 @@ import pandas as pd
 import pytest
 
 from zrp_ga import config, report, robots
-from zrp_ga.cli import report as report_cli
 from zrp_ga.algorithms.ga import GA
+from zrp_ga.cli import report as report_cli
 from zrp_ga.model import kinematics
 from zrp_ga.model.simulation import random_joints
 from zrp_ga.run import execute
