@@ -239,8 +239,8 @@ def test_run_directory_compensation_on_the_true_arm(tmp_path):
     truth = cal.task.calibrated_robot(cal.task.truth)
     q = programme(PUMA, np.random.default_rng(11), 6, CASES["puma560"][2])
     c = zrp_ga.compensate(tmp_path / "run", q, kind="joints", out=tmp_path / "comp")
-    with pytest.raises(ValueError, match="a run's URDF carries its base and tool frames"):
-        zrp_ga.compensate(tmp_path / "run" / "calibrated_robot.urdf", q, kind="joints")
+    urdf = zrp_ga.compensate(tmp_path / "run" / "calibrated_robot.urdf", q, kind="joints")  # the arm in its base frame too
+    assert urdf.arms.nominal.name == "puma560" and np.allclose(urdf.q, c.q, rtol=0, atol=1e-12)
     assert c.arms.nominal.name == "puma560"
     from zrp_ga.model import kinematics
 

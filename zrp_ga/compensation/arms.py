@@ -128,10 +128,7 @@ def _from_path(path: Path) -> Arms:
         run, path = path, path / RUN_MODEL
     else:
         regular_file(path, "a calibrated robot file or a zrp-ga run directory")
-        run = path.parent if (path.parent / directory.SUMMARY).is_file() else None
-        if run is not None and path.suffix.lower() in (".urdf", ".xml"):
-            raise ValueError(f"{path}: a run's URDF carries its base and tool frames (an instrument's frame); "
-                             f"give the run directory {run} (or its {RUN_MODEL}, the arm in its base frame)")  # fmt: skip
+        run = path.parent if (path.parent / directory.SUMMARY).is_file() else None  # a run's URDF: its arm in the base frame too
     cal = read_robot(path)
     if run is None:
         return Arms(cal, None, source=str(path))

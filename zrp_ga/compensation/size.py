@@ -1,5 +1,5 @@
 """The size of a compensation, estimated before any row is read: memory and time from the rows
-(a file's rows estimated from its size, :func:`zrp_ga.run.budget.file_rows`) and the arm's
+(a file's rows estimated from its size, :func:`zrp_ga.problems.size.file_rows`) and the arm's
 joints. A compensation whose estimate exceeds the memory this process may use
 (:func:`zrp_ga.run.budget.available_bytes`; ``ZRP_GA_MEMORY`` replaces it) is refused with one
 line; a long one is announced.
@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from zrp_ga.problems import size as problem_size
 from zrp_ga.run import budget
 
 log = logging.getLogger(__name__)
@@ -47,7 +48,7 @@ class Size:
 
     def memory(self) -> float:
         """Bytes it needs at most (module docstring)."""
-        text = budget.CELL_BYTES * self.rows * self.columns
+        text = problem_size.CELL_BYTES * self.rows * self.columns
         return budget.MARGIN * (text + ROW_BYTES * self.rows * max(self.joints, 6) / 6)
 
     def seconds(self) -> tuple[float, float]:
@@ -60,7 +61,7 @@ def of_program(program: Any, joints: int) -> Size:
     """The :class:`Size` of ``program`` (a file path, a table or an array) for an arm of
     ``joints`` joints; a file that is no regular file counts as empty (its reader says why)."""
     if isinstance(program, (str, os.PathLike)):
-        rows = budget.file_rows(Path(program))
+        rows = problem_size.file_rows(Path(program))
         columns = _header_columns(Path(program))
         return Size(rows, columns, joints, None)
     try:
