@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from zrp_ga import config
+from zrp_ga.core import targets
 from zrp_ga.run import build
 
 RESULTS = Path(__file__).parent / "results"
@@ -57,7 +58,7 @@ def ga(problem, budget: int, seed: int, overrides: list[str]) -> Trace:
             trace.best.append(min(row["best"], trace.best[-1]) if trace.best else row["best"])
 
     cfg = config.load(overrides + ["population.generations=null", f"population.max_evals={budget}"])
-    config.instantiate(cfg.algorithm, "algorithm").run(problem, np.random.default_rng([seed, 0]), [Record()])
+    targets.create(cfg.algorithm, "algorithm").run(problem, np.random.default_rng([seed, 0]), [Record()])
     return trace
 
 

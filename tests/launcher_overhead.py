@@ -1,8 +1,8 @@
 """The launcher's own cost per job, on the operator grid (144 jobs), in one process:
 
 - the driver's: composing each job's config, its batch key, pickling it (``_Dispatcher.next_batch``);
-- the worker's: everything ``_batch.run_batch`` does but the runs (``execute.sweep_batch``):
-  Hydra's records, logging, callbacks, the console line.
+- the worker's: everything ``_batch.run_batch`` does but the runs (``zrp_ga.run.sweep.sweep_batch``):
+  Hydra's records, logging, callbacks, the job configs typed, the console line.
 
 The runs are made short (``population.max_evals``) since only what surrounds them is measured.
 CPU seconds of this process (``time.process_time``), so that a busy machine changes them less
@@ -44,11 +44,12 @@ def main() -> None:
     from hydra.types import HydraContext, RunMode
 
     from hydra_plugins.zrp_ga_launcher import _batch, _compose, _workers
+    from hydra_plugins.zrp_ga_launcher.config import ZrpGaLauncherConf
     from zrp_ga import config
     from zrp_ga.cli import main as cli_main
-    from zrp_ga.run import execute
+    from zrp_ga.cli.main import warm_up
+    from zrp_ga.run import sweep as run_sweep
 
-    config.register()
     sweep = Path(tempfile.mkdtemp(prefix="launcher_overhead-"))
     with initialize_config_module("zrp_ga.conf", **config.hydra_options()):
         loader = _compose.ComposingLoader.wrap(GlobalHydra.instance().hydra.config_loader)
@@ -57,14 +58,14 @@ def main() -> None:
                        f"hydra.launcher.lockstep={args.lockstep}", f"hydra.sweep.dir={sweep}", "hydra.mode=MULTIRUN"],
             RunMode.MULTIRUN)  # fmt: skip
         jobs = grid()
-        settings = config.ZrpGaLauncherConf(lockstep=args.lockstep == "true")
+        settings = ZrpGaLauncherConf(lockstep=args.lockstep == "true")
         context = HydraContext(config_loader=loader, callbacks=_Callbacks(master))
         launcher = types.SimpleNamespace(config=master, hydra_context=context, settings=settings,
                                          task_function=cli_main.main.__wrapped__)  # fmt: skip
         pool = types.SimpleNamespace(workers=[None, None])
         todo = collections.deque(enumerate(jobs))
         dispatcher = _workers._Dispatcher(launcher, pool, todo, sweep)
-        execute.warm_up(master)
+        warm_up(master)
 
         hydras = [0.0]  # in Hydra's own composition (a few per sweep, not per job)
         for name in ("load_sweep_config", "compute_defaults_list"):
@@ -82,7 +83,7 @@ def main() -> None:
         sizes = [len(b) for _, b in batches]
 
         inside = [0.0]
-        real = execute.sweep_batch
+        real = run_sweep.sweep_batch
 
         def timed(*a, **kw):
             t = time.process_time()
@@ -92,10 +93,10 @@ def main() -> None:
                 inside[0] += time.process_time() - t
 
         if args.lockstep == "true":
-            execute.sweep_batch = timed
-        else:  # the task function's run (zrp_ga.cli.main.main calls execute.sweep_job)
-            real = execute.sweep_job
-            execute.sweep_job = timed
+            run_sweep.sweep_batch = timed
+        else:  # the task function's run (zrp_ga.cli.main.main calls zrp_ga.run.sweep.sweep_job)
+            real = run_sweep.sweep_job
+            run_sweep.sweep_job = timed
         t0 = time.process_time()
         with profile if args.profile == "worker" else _nothing():
             for together, batch in batches:

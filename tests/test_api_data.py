@@ -17,7 +17,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import zrp_ga
-from zrp_ga import config, robots
+from zrp_ga import robots
+from zrp_ga.core.schema import ConfigError
 from zrp_ga.model import kinematics
 from zrp_ga.model.poses import Measurements
 
@@ -206,7 +207,7 @@ def test_bad_validation_named_and_wrong_type_refused():
     ],
 )
 def test_bad_values_are_config_errors_on_one_line_as_on_the_command_line(settings, expected):
-    with pytest.raises(config.ConfigError, match=expected) as exc:
+    with pytest.raises(ConfigError, match=expected) as exc:
         zrp_ga.calibrate("puma560", algorithm="lm", **settings)
     assert "\n" not in str(exc.value)
 

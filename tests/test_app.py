@@ -9,8 +9,8 @@ from hydra.errors import ConfigCompositionException, MissingConfigException
 
 from zrp_ga import config
 from zrp_ga.cli import main as cli_main
-from zrp_ga.config import ConfigError
 from zrp_ga.core.errors import one_line
+from zrp_ga.core.schema import ConfigError
 from zrp_ga.run import build, execute
 from zrp_ga.run.callbacks import COLUMNS, WALL_CLOCK_COLUMNS
 
@@ -203,7 +203,7 @@ def test_exact_data_take_the_round_off_reference():
 
 def test_hparams_search_composes_with_optuna():
     pytest.importorskip("hydra_plugins.hydra_optuna_sweeper")
-    cfg = config.load(["hparams_search=ga_optuna"], return_hydra_config=True)
+    cfg = config.compose(["hparams_search=ga_optuna"], return_hydra_config=True)
     assert "OptunaSweeper" in cfg.hydra.sweeper._target_ and cfg.objective.value == "over_floor"
     assert "population.mu" in cfg.hydra.sweeper.params and cfg.refine.op is None
 

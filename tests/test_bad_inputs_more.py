@@ -22,7 +22,7 @@ import pandas as pd
 import pytest
 
 from zrp_ga import config, robots
-from zrp_ga.core import checks, files
+from zrp_ga.core import checks, files, schema
 from zrp_ga.io import measurements
 from zrp_ga.model import kinematics
 from zrp_ga.model.poses import Measurements
@@ -255,7 +255,7 @@ def test_some_calibration_rows_in_the_validation_file_are_a_warning_naming_them(
     val = _read(_points(20, seed=1)[:17] + [ROWS[4], ROWS[9], ROWS[14]], "val.csv", tmp_path)
     # lines count from the header (line 1): ROWS[4] is line 6 of cal.csv, ROWS[9] line 11
     assert measurements.shared_rows(calib, val) == [(19, 6), (20, 11), (21, 16)]
-    conf = config.section(config.MeasuredConf, {"calibration_file": "x"}, "problem")
+    conf = schema.section(schema.MeasuredConf, {"calibration_file": "x"}, "problem")
     task = measured.from_measurements(robots.get("ur10"), calib, val, conf)
     assert any(w.startswith("3 of the 20 rows of the validation data") and "19 = 6, 20 = 11, 21 = 16" in w for w in task.warnings)
     with pytest.raises(ValueError, match="problem.validation_file: all 40 rows"):
@@ -272,7 +272,7 @@ def test_checks_name_their_keys():
         checks.cmaes_population(1)
     checks.cmaes_population(2)
     with pytest.raises(ValueError, match="^problem.validation_file and problem.validation_fraction"):
-        config.section(config.MeasuredConf, {"calibration_file": "a", "validation_file": "b", "validation_fraction": 0.2}, "problem")
+        schema.section(schema.MeasuredConf, {"calibration_file": "a", "validation_file": "b", "validation_fraction": 0.2}, "problem")
 
 
 # --- the report: values that are no cost ----------------------------------------------------------------

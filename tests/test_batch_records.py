@@ -61,7 +61,6 @@ def hydra_loader():
 
     from zrp_ga import config
 
-    config.register()
     with initialize_config_module("zrp_ga.conf", **config.hydra_options()):
         yield GlobalHydra.instance().hydra.config_loader
 

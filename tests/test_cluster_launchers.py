@@ -99,7 +99,7 @@ def test_batches_put_the_runs_of_one_key_side_by_side_in_job_order():
                                                      ("ray_local", "ray", {"ray_address": None}),
                                                      ("ray_cluster", "ray", {"ray_address": "auto"})])  # fmt: skip
 def test_cluster_presets_are_zrp_ga_launcher_in_batches(preset, executor, extra):
-    cfg = config.load([f"hydra/launcher={preset}"], return_hydra_config=True)
+    cfg = config.compose([f"hydra/launcher={preset}"], return_hydra_config=True)
     launcher = cfg.hydra.launcher
     assert launcher._target_ == "hydra_plugins.zrp_ga_launcher.launcher.ZrpGaLauncher"
     assert launcher.executor.value == executor
@@ -109,7 +109,7 @@ def test_cluster_presets_are_zrp_ga_launcher_in_batches(preset, executor, extra)
 
 def test_one_slurm_job_per_run_stays_reachable():
     pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
-    cfg = config.load(["hydra/launcher=slurm_per_run"], return_hydra_config=True)
+    cfg = config.compose(["hydra/launcher=slurm_per_run"], return_hydra_config=True)
     assert "SlurmLauncher" in cfg.hydra.launcher._target_ and cfg.hydra.launcher.mem_gb == 2
 
 

@@ -14,8 +14,8 @@ import pandas as pd
 import pytest
 
 from zrp_ga import config, robots
-from zrp_ga.config import ConfigError
 from zrp_ga.core.errors import one_line
+from zrp_ga.core.schema import ConfigError
 from zrp_ga.run import build, callbacks, execute
 from zrp_ga.run.callbacks import WALL_CLOCK_COLUMNS
 from zrp_ga.run.directory import read_manifest
@@ -53,7 +53,7 @@ def test_every_option_of_every_group_composes_and_builds(group, tmp_path):
 def test_launcher_presets_compose(preset, target):
     if preset == "joblib":
         pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
-    cfg = config.load([f"hydra/launcher={preset}"], return_hydra_config=True)
+    cfg = config.compose([f"hydra/launcher={preset}"], return_hydra_config=True)
     assert target in cfg.hydra.launcher._target_
     assert preset != "local" or cfg.hydra.launcher.n_jobs == -1
 

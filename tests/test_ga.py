@@ -6,7 +6,8 @@ import pytest
 from zrp_ga import config, robots
 from zrp_ga.algorithms import Callback
 from zrp_ga.algorithms.ga import GA
-from zrp_ga.config import ConfigError
+from zrp_ga.core import targets
+from zrp_ga.core.schema import ConfigError
 from zrp_ga.model.cost import CalibrationProblem
 from zrp_ga.model.layout import Layout
 from zrp_ga.model.simulation import simulate
@@ -23,7 +24,7 @@ def problem():
 
 def _ga(*overrides) -> GA:
     """The GA exactly as the command line builds it."""
-    return config.instantiate(config.load(["inversion=block", *overrides]).algorithm, "algorithm")
+    return targets.create(config.load(["inversion=block", *overrides]).algorithm, "algorithm")
 
 
 class Rows(Callback):

@@ -20,10 +20,11 @@ import pytest
 
 from zrp_ga import config
 from zrp_ga.operators.base import Streams
-from zrp_ga.run import directory, execute
+from zrp_ga.run import directory
 from zrp_ga.run.callbacks import WALL_CLOCK_COLUMNS
 from zrp_ga.run.directory import Sweep
 from zrp_ga.run.shared import Cache
+from zrp_ga.run.sweep import SweepJob, batch_key, sweep_batch, sweep_job
 
 BASE = ["problem=multipose", "problem.n_poses=8", "problem.n_validation=6", "seed=3", "progress=false",
         "population.mu=12", "population.lambda_=16", "checkpoint_every=4"]  # fmt: skip
@@ -48,12 +49,9 @@ MIXED = [
 ]  # fmt: skip
 
 
-def _jobs(where: Path, lines: list[list[str]]) -> list[tuple]:
-    jobs = []
-    for k, extra in enumerate(lines):
-        cfg = config.load([*BASE, *extra])
-        jobs.append((cfg, where / str(k), Sweep(where, k, tuple(extra), str(k)), {}))
-    return jobs
+def _jobs(where: Path, lines: list[list[str]]) -> list[SweepJob]:
+    return [SweepJob(config.load([*BASE, *extra]), where / str(k), Sweep(where, k, tuple(extra), str(k)))
+            for k, extra in enumerate(lines)]  # fmt: skip
 
 
 def _rows(path: Path) -> list[dict]:
@@ -99,9 +97,9 @@ def batch_and_alone(tmp_path_factory):
     together, alone = tmp_path_factory.mktemp("together"), tmp_path_factory.mktemp("alone")
     cache = Cache()
     jobs = _jobs(together, MIXED)
-    assert len({execute.batch_key(cfg) for cfg, *_ in jobs}) == 1  # one batch
-    values = execute.sweep_batch(jobs, cache)
-    singles = [execute.sweep_job(*job, cache) for job in _jobs(alone, MIXED)]
+    assert len({batch_key(job.cfg) for job in jobs}) == 1  # one batch
+    values = sweep_batch(jobs, cache)
+    singles = [sweep_job(job, cache) for job in _jobs(alone, MIXED)]
     return together, alone, values, singles
 
 
@@ -197,7 +195,7 @@ def test_an_interrupted_batch_continues_to_the_files_of_an_uninterrupted_one(bat
     monkeypatch.setattr(callbacks.Checkpoint, "on_generation", interrupted)
     cache = Cache()
     with pytest.raises(KeyboardInterrupt):
-        execute.sweep_batch(_jobs(tmp_path, MIXED), cache)
+        sweep_batch(_jobs(tmp_path, MIXED), cache)
     states = {r["job"]: r["status"] for r in directory.job_states(tmp_path)}
     assert "interrupted" in states.values()
     for k, state in states.items():
@@ -205,7 +203,7 @@ def test_an_interrupted_batch_continues_to_the_files_of_an_uninterrupted_one(bat
             saved = _checkpoint(tmp_path / str(k) / directory.CHECKPOINT)["__json__"]["gen"]
             assert int(_rows(tmp_path / str(k) / directory.CONVERGENCE)[-1]["gen"]) >= saved  # the rows reach the checkpoint
     monkeypatch.setattr(callbacks.Checkpoint, "on_generation", original)
-    values = execute.sweep_batch(_jobs(tmp_path, MIXED), cache)
+    values = sweep_batch(_jobs(tmp_path, MIXED), cache)
     assert not [v for v in values if isinstance(v, Exception)]
     for k in range(len(MIXED)):
         _same_run(tmp_path / str(k), together / str(k))

@@ -15,6 +15,7 @@ from urdf_reference import urdf_fk
 
 from zrp_ga import config, robots
 from zrp_ga.cli import main as cli_main
+from zrp_ga.core.schema import MeasuredConf
 from zrp_ga.io import robot_files
 from zrp_ga.model import error_model, kinematics, metrics, registration
 from zrp_ga.model.cost import CalibrationProblem
@@ -270,7 +271,7 @@ def test_validation_with_a_known_other_tool_point(tmp_path, rng):
 def test_data_gene_ranges_follow_the_residuals_and_the_axes_levers(tmp_path, rng):
     cal, _ = _files(tmp_path, rng, _true_arm(rng), n_cal=40)
     task = build.prepare(config.load(_over(cal, None, "algorithm=lm")), tmp_path / "r").task
-    p, reg, c = task.problem, task.registration, config.MeasuredConf(search_scale=5.0)
+    p, reg, c = task.problem, task.registration, MeasuredConf(search_scale=5.0)
     e = reg.max
     np.testing.assert_allclose(p.upper[p.layout.blocks["b0"]], 5.0 * e)
     np.testing.assert_allclose(p.upper[p.layout.blocks["base"]], 5.0 * e)

@@ -130,7 +130,7 @@ def test_selections_prefer_low_costs_and_treat_nan_as_worst(rng):
 )  # fmt: skip
 def test_a_missing_operator_parameter_is_a_config_error_naming_key_and_parameter(rng, node, key, missing):
     from zrp_ga import operators
-    from zrp_ga.config import ConfigError
+    from zrp_ga.core.schema import ConfigError
 
     family = key.split(".")[0]
     with pytest.raises(ConfigError, match=rf"^{key}\.{missing}: {node['_target_']} needs this parameter"):
@@ -141,7 +141,7 @@ def test_a_missing_operator_parameter_is_a_config_error_naming_key_and_parameter
 
 def test_the_problems_ranges_count_as_given_but_only_where_build_binds_them(rng):
     from zrp_ga import operators
-    from zrp_ga.config import ConfigError
+    from zrp_ga.core.schema import ConfigError
 
     node = {"_target_": "deap.tools.mutPolynomialBounded", "eta": 20.0, "indpb": 0.2}  # low, up: the problem's
     mutate = operators.build(node, "mutation.op", "mutation", rng, low=LOW, up=UP)

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from zrp_ga import config, robots
+from zrp_ga.core import targets
 from zrp_ga.model.cost import CalibrationProblem
 from zrp_ga.model.layout import Layout, mask
 from zrp_ga.model.simulation import simulate
@@ -359,7 +360,7 @@ def test_the_ga_runs_every_operator_for_every_genome_size(settings, arm_and_data
         masked = mask(layout, free=layout.full_names[:K])
         half = np.full(K, 0.01)
         problem = CalibrationProblem(arm, data, masked, -half, half, cost="nonlinear")
-        result = config.instantiate(node, "algorithm").run(problem, np.random.default_rng(K))
+        result = targets.create(node, "algorithm").run(problem, np.random.default_rng(K))
         assert result.x.shape == (K,) and np.all(np.abs(result.x) <= 0.01) and np.isfinite(result.cost), K
 
 
@@ -378,6 +379,6 @@ def test_the_ga_selects_poses_for_every_subset_size_from_one():
                         "rotation.prob=1"]).algorithm  # fmt: skip
     for k in range(1, 13):
         problem = SelectionProblem(calibration, k=k)
-        ga = config.instantiate(node, "algorithm")
+        ga = targets.create(node, "algorithm")
         result = ga.run(problem, np.random.default_rng(k))
         assert _distinct_in_range(ga.pop, 14) and _distinct_in_range(result.x[None], 14) and result.x.shape == (k,), k

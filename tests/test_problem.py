@@ -168,8 +168,9 @@ def test_each_problem_kind_has_the_parts_it_declares(rng):
 def test_the_algorithms_run_a_problem_with_the_required_part_only():
     from zrp_ga import config
     from zrp_ga.algorithms.random_search import RandomSearch
+    from zrp_ga.core import targets
 
-    ga = config.instantiate(config.load(["refine=none", "inversion=block", "rotation=block", "population.mu=30",
+    ga = targets.create(config.load(["refine=none", "inversion=block", "rotation=block", "population.mu=30",
                                          "population.lambda_=30", "population.generations=30"]).algorithm, "algorithm")  # fmt: skip
     result = ga.run(Sphere(), np.random.default_rng(0))  # one gene block, uniform start, clipped into the ranges
     assert result.cost < 0.5 * Sphere().costs(np.zeros(7))[0]  # well below the centre's cost (0.79)
@@ -181,11 +182,12 @@ def test_the_algorithms_run_a_problem_with_the_required_part_only():
 def test_least_squares_and_the_step_need_a_jacobian():
     from zrp_ga import config
     from zrp_ga.algorithms.lm import LM
-    from zrp_ga.config import ConfigError
+    from zrp_ga.core import targets
+    from zrp_ga.core.schema import ConfigError
 
     with pytest.raises(ConfigError, match="Levenberg-Marquardt needs a residual and its Jacobian"):
         LM().run(Sphere(), np.random.default_rng(0))
-    ga = config.instantiate(config.load([]).algorithm, "algorithm")  # refine=pinv by default
+    ga = targets.create(config.load([]).algorithm, "algorithm")  # refine=pinv by default
     with pytest.raises(ConfigError, match="refine: the pseudo-inverse step needs a calibration problem"):
         ga.run(Sphere(), np.random.default_rng(0))
 

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from zrp_ga import config
-from zrp_ga.config import ConfigError
+from zrp_ga.core.schema import ConfigError
 from zrp_ga.run import callbacks, checkpoint, directory, execute
 from zrp_ga.run.build import prepare
 from zrp_ga.run.callbacks import WALL_CLOCK_COLUMNS

@@ -5,12 +5,15 @@ temporary files of a killed run are removed when the next run starts there."""
 import errno
 import json
 import os
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
 
 from zrp_ga import config
-from zrp_ga.config import ConfigError
+from zrp_ga.core.schema import ConfigError
 from zrp_ga.run import checkpoint, directory, execute
 
 FAST = ["problem=multipose", "problem.n_poses=10", "problem.n_validation=10", "refine=none", "population.mu=20",
@@ -104,12 +107,12 @@ def test_a_damaged_job_of_a_sweep_is_named_and_run_again(tmp_path, damage, caplo
     """A sweep run again finds a job whose files were damaged: it names the file, runs the job
     again (to the same files: runs are deterministic), and is not blocked by it."""
     from zrp_ga.run.directory import Sweep
-    from zrp_ga.run.execute import sweep_job
+    from zrp_ga.run.sweep import SweepJob, sweep_job
 
     cfg = config.load([*FAST, "population.generations=3"])
     sweep, out = tmp_path / "sweep", tmp_path / "sweep" / "0"
-    job = Sweep(sweep, 0, ("seed=4",), "0")
-    first = sweep_job(cfg, out, job, {})
+    job = SweepJob(cfg, out, Sweep(sweep, 0, ("seed=4",), "0"))
+    first = sweep_job(job)
     conv, summ = (out / "convergence.csv").read_text(), json.loads((out / "summary.json").read_text())
     name = {"summary cut short": "summary.json"}.get(damage, "convergence.csv")
     if damage == "summary cut short":
@@ -118,7 +121,7 @@ def test_a_damaged_job_of_a_sweep_is_named_and_run_again(tmp_path, damage, caplo
         (out / "convergence.csv").unlink()
     else:
         (out / "convergence.csv").write_text(conv[: conv.rindex("\n", 0, len(conv) - 1) + 5])
-    again = sweep_job(cfg, out, job, {})
+    again = sweep_job(job)
     assert any(name in r.getMessage() and "runs again" in r.getMessage() for r in caplog.records)
     assert again == first and directory.status(out) == "done"
     assert (out / "convergence.csv").read_text().count("\n") == conv.count("\n")
@@ -129,20 +132,74 @@ def test_a_damaged_job_of_a_sweep_is_named_and_run_again(tmp_path, damage, caplo
 def test_a_finished_job_recorded_before_a_setting_existed_is_the_same_run(tmp_path):
     """A run recorded by an older zrp_ga holds no key for a setting added since (null by
     default): continuing its sweep keeps it; a setting that really differs is named."""
-    from omegaconf import OmegaConf
-
     from zrp_ga import config
-    from zrp_ga.config import ConfigError
-    from zrp_ga.run import execute
+    from zrp_ga.core import schema
+    from zrp_ga.core.schema import ConfigError
+    from zrp_ga.run import sweep
 
     cfg = config.load(["problem=multipose"])
-    stored = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    stored = schema.to_dict(cfg)
     nulls = [k for k, v in stored["problem"].items() if v is None]
     assert nulls, "the problem schema has null settings to leave out"
     older = {**stored, "problem": {k: v for k, v in stored["problem"].items() if k not in nulls}}
-    execute._same_run(cfg, older, tmp_path)  # kept: no error
+    sweep._same_run(cfg, older, tmp_path)  # kept: no error
     other = {**stored, "problem": {**stored["problem"], "n_poses": stored["problem"]["n_poses"] + 1}}
     with pytest.raises(ConfigError, match=r"problem\.n_poses differs"):
-        execute._same_run(cfg, other, tmp_path)
+        sweep._same_run(cfg, other, tmp_path)
     with pytest.raises(ConfigError, match="differs"):
-        execute._same_run(cfg, {**older, "problem": {**older["problem"], nulls[0]: [1]}}, tmp_path)
+        sweep._same_run(cfg, {**older, "problem": {**older["problem"], nulls[0]: [1]}}, tmp_path)
+
+
+NO_FCNTL = """
+import sys
+sys.modules["fcntl"] = None  # as on Windows: `import fcntl` fails
+"""
+
+
+def test_without_fcntl_every_module_imports_and_a_directory_in_use_is_refused(tmp_path):
+    """Every module of zrp_ga and of its launcher imports where ``fcntl`` does not exist (Windows),
+    and a run directory's lock still refuses a second run, from this process and from another,
+    until it is released."""
+    out = tmp_path / "run"
+    out.mkdir()
+    other = NO_FCNTL + textwrap.dedent(f"""
+        from pathlib import Path
+        from zrp_ga.run import directory
+        try:
+            with directory.locked(Path({str(out)!r})):
+                print("locked")
+        except ValueError as exc:
+            print(exc)
+    """)  # fmt: skip
+    code = NO_FCNTL + textwrap.dedent(f"""
+        import importlib, os, pkgutil, subprocess
+        from pathlib import Path
+        import hydra_plugins.zrp_ga_launcher, zrp_ga
+        names = [m.name for p in (zrp_ga, hydra_plugins.zrp_ga_launcher) for m in pkgutil.walk_packages(p.__path__, p.__name__ + ".")
+                 if not m.name.endswith("__main__")]
+        for name in names:
+            importlib.import_module(name)
+        print(len(names), "modules", os.getpid())
+        from zrp_ga import config
+        from zrp_ga.run import directory, execute
+        out = Path({str(out)!r})
+        cfg = config.load({[*FAST, "population.generations=2"]!r})
+        with directory.locked(out):
+            for refused in (lambda: execute.run(cfg, out), lambda: print(subprocess.run([sys.executable, "-c", {other!r}],
+                            capture_output=True, text=True).stdout.strip())):
+                try:
+                    refused()
+                except ValueError as exc:
+                    print(exc)
+        print(subprocess.run([sys.executable, "-c", {other!r}], capture_output=True, text=True).stdout.strip())
+        execute.run(cfg, out)
+        print(directory.status(out), "fcntl" in sys.modules and sys.modules["fcntl"] is None)
+    """)  # fmt: skip
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    lines = done.stdout.splitlines()
+    assert done.returncode == 0 and len(lines) == 5, done.stdout + done.stderr
+    count, _, pid = lines[0].split()
+    assert int(count) > 100  # every module of both packages
+    refused = f"{out}: another run (process {pid}) is writing into this directory; wait for it to end or choose another directory"
+    assert lines[1:3] == [refused, refused]  # from this process, then from another
+    assert lines[3] == "locked" and lines[4] == "done True"  # released: the lock is taken, and a run goes ahead

@@ -1,6 +1,6 @@
 """The shortcuts that keep a run's set-up and files cheap in a sweep give what the general
-code gives: the resolved config is OmegaConf's, an optimiser built without Hydra is the one
-Hydra builds, a file replaced by swapping holds the new text and leaves no temporary file, the
+code gives (the config's: tests/test_config.py, tests/test_targets.py): a file replaced by
+swapping holds the new text and leaves no temporary file, the
 robot files' numbers and rows are what their definitions and PyYAML say, the initial population's
 table is write_csv's."""
 
@@ -11,51 +11,11 @@ import os
 import numpy as np
 import pytest
 import yaml
-from omegaconf import OmegaConf
 
-from zrp_ga import config, robots
+from zrp_ga import robots
 from zrp_ga.core import fileio
 from zrp_ga.io import records, robot_files
 from zrp_ga.model import dh
-from zrp_ga.run.build import instance_key, task_config
-
-CONFIGS = [[], ["experiment=operator_grid", "hydra.mode=RUN"], ["experiment=methods_baselines", "hydra.mode=RUN"],
-           ["algorithm=cmaes"], ["algorithm=lm"], ["algorithm=random_search"], ["problem=ur10_ipa"],
-           ["instance=ur10_30poses", "crossover=sbx"]]  # fmt: skip
-
-
-@pytest.mark.parametrize("overrides", CONFIGS, ids=lambda o: " ".join(o) or "default")
-def test_the_resolved_config_is_omegaconfs_and_so_is_the_instance_key(overrides):
-    cfg = task_config(config.load(overrides))
-    want = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
-    got = config.resolved(cfg)
-    assert got == want and repr(got) == repr(want)  # the same values, types and key order
-    assert instance_key(cfg, got) == instance_key(cfg)
-
-
-def test_interpolations_other_than_node_references_are_left_to_omegaconf():
-    cfg = OmegaConf.create({"a": {"x": 1, "y": "${b}"}, "b": {"z": "${c.w}", "v": [1, "${a.x}"]}, "c": {"w": 2.5},
-                            "s": "run_${c.w}", "e": "\\${a}", "r": "${.s}", "n": "${c}"})  # fmt: skip
-    assert config.resolved(cfg) == OmegaConf.to_container(cfg, resolve=True)
-    chained = OmegaConf.create({"p": {"q": "${r}"}, "r": {"t": [1, 2]}, "u": "${p}"})
-    assert config.resolved(chained) == OmegaConf.to_container(chained, resolve=True) == {
-        "p": {"q": {"t": [1, 2]}}, "r": {"t": [1, 2]}, "u": {"q": {"t": [1, 2]}}}
-
-
-@pytest.mark.parametrize("algorithm", ["ga", "cmaes", "lm", "random_search", "exchange"])
-def test_an_optimiser_built_without_hydra_is_the_one_hydra_builds(algorithm, monkeypatch):
-    cfg = task_config(config.load([f"algorithm={algorithm}", "crossover=blend", "population.mu=12"]))
-    mine = config.instantiate(cfg.algorithm, "algorithm", root=cfg)
-    monkeypatch.setattr(config, "_direct", lambda node, root: None)  # Hydra's instantiate only
-    theirs = config.instantiate(cfg.algorithm, "algorithm", root=cfg)
-    assert _state(mine) == _state(theirs)
-
-
-def _state(o, depth: int = 0):
-    """What an object holds, as comparable plain values (objects by their type and attributes)."""
-    if hasattr(o, "__dict__") and " at 0x" in repr(o) and depth < 3:
-        return type(o).__name__, {k: _state(v, depth + 1) for k, v in vars(o).items() if k != "_t0"}  # _t0: a clock
-    return repr(o)
 
 
 def test_replace_leaves_the_new_file_and_no_temporary_one(tmp_path, monkeypatch):

@@ -15,8 +15,9 @@ from zrp_ga.algorithms import Callback
 from zrp_ga.algorithms.exchange import Exchange
 from zrp_ga.algorithms.ga import GA
 from zrp_ga.algorithms.random_search import RandomSearch
-from zrp_ga.config import ConfigError, Index
+from zrp_ga.core import targets
 from zrp_ga.core.errors import one_line
+from zrp_ga.core.schema import ConfigError, Index
 from zrp_ga.model.cost import CalibrationProblem
 from zrp_ga.model.layout import Layout
 from zrp_ga.model.robot import ZRPRobot
@@ -235,7 +236,7 @@ class Rows(Callback):
 
 
 def _ga(*overrides) -> GA:
-    return config.instantiate(config.load(["experiment=pose_selection", *overrides]).algorithm, "algorithm")
+    return targets.create(config.load(["experiment=pose_selection", *overrides]).algorithm, "algorithm")
 
 
 @pytest.mark.parametrize("crossover", ["subset", "two_point", "blend"])
@@ -254,7 +255,7 @@ def test_ga_on_a_calibration_problem_still_draws_uniform_genes_and_clips():
     """The hooks leave existing problems alone: the first population is exactly the uniform
     draw of the GA's generator, and genes are clipped into their ranges."""
     cal = _calibration(robots.get("puma560"), M=10)
-    ga = config.instantiate(config.load(["refine=none", "population.mu=7"]).algorithm, "algorithm")
+    ga = targets.create(config.load(["refine=none", "population.mu=7"]).algorithm, "algorithm")
     ga.setup(cal, np.random.default_rng(11))
     ga.initialize()
     np.testing.assert_array_equal(ga.pop, np.random.default_rng(11).uniform(cal.lower, cal.upper, size=(7, 36)))
@@ -265,7 +266,7 @@ def test_ga_on_a_calibration_problem_still_draws_uniform_genes_and_clips():
 
 def test_the_pseudo_inverse_step_is_refused_on_a_selection_problem():
     prob = SelectionProblem(_calibration(robots.get("puma560"), M=20), k=5)
-    ga = config.instantiate(config.load(["problem=pose_selection"]).algorithm, "algorithm")  # refine=pinv
+    ga = targets.create(config.load(["problem=pose_selection"]).algorithm, "algorithm")  # refine=pinv
     with pytest.raises(ConfigError, match="refine: .*set refine=none"):
         ga.run(prob, np.random.default_rng(0))
 

@@ -15,6 +15,7 @@ import pytest
 
 from zrp_ga import config
 from zrp_ga.algorithms.ga import GA
+from zrp_ga.core import targets
 
 
 class Recorded:
@@ -65,7 +66,7 @@ def _ga(strategy: str, elite: int, mu: int, lam: int, max_evals: int | None = No
                  "mutation.op.indpb=1.0", "inversion=none", "rotation=none", f"algorithm.strategy={strategy}",
                  f"algorithm.elite={elite}", f"population.mu={mu}", f"population.lambda_={lam}", "population.generations=4",
                  f"population.max_evals={'null' if max_evals is None else max_evals}"]  # fmt: skip
-    return config.instantiate(config.load(overrides).algorithm, "algorithm")
+    return targets.create(config.load(overrides).algorithm, "algorithm")
 
 
 CASES = [

@@ -57,7 +57,6 @@ def hydra_loader():
 
     from zrp_ga import config
 
-    config.register()
     with initialize_config_module("zrp_ga.conf", **config.hydra_options()):
         yield GlobalHydra.instance().hydra.config_loader
 
@@ -197,7 +196,7 @@ def test_warm_up_builds_the_base_instance_and_writes_nothing(tmp_path, monkeypat
 
     monkeypatch.chdir(tmp_path)
     cache = Cache()
-    execute.warm_up(config.load(SMALL + ["seed=5"], return_hydra_config=True), cache)
+    execute.warm_up(config.load(SMALL + ["seed=5"]), cache)
     assert [json.loads(k)["seed"] for k in cache.instances] == [5]
     assert not list(tmp_path.iterdir())
 
@@ -412,13 +411,14 @@ def test_the_driver_groups_jobs_by_batch_key(hydra_loader, tmp_path):
     from hydra.types import HydraContext, RunMode
 
     from hydra_plugins.zrp_ga_launcher import _compose, _workers
+    from hydra_plugins.zrp_ga_launcher.config import ZrpGaLauncherConf
     from zrp_ga import config
     from zrp_ga.cli import main as cli_main
-    from zrp_ga.run import execute
+    from zrp_ga.run.sweep import batch_key
 
     master = hydra_loader.load_configuration("config", ["hydra.mode=MULTIRUN", f"hydra.sweep.dir={tmp_path}"], RunMode.MULTIRUN)
     jobs = [[f"algorithm={a}", f"crossover={c}", f"seed={s}"] for a in ("ga", "lm") for c in ("sbx", "blend") for s in range(12)]
-    launcher = types.SimpleNamespace(config=master, settings=config.ZrpGaLauncherConf(),
+    launcher = types.SimpleNamespace(config=master, settings=ZrpGaLauncherConf(),
                                      hydra_context=HydraContext(config_loader=_compose.ComposingLoader.wrap(hydra_loader), callbacks=None),
                                      task_function=cli_main.main.__wrapped__)  # fmt: skip
     pool = types.SimpleNamespace(workers=[None, None])
@@ -430,7 +430,7 @@ def test_the_driver_groups_jobs_by_batch_key(hydra_loader, tmp_path):
     sent = sorted(idx for _, b in batches for idx, _, _ in b)
     assert sent == list(range(len(jobs)))
     for together, batch in batches:
-        keys = {execute.batch_key(pickle.loads(data)) for _, _, data in batch}
+        keys = {batch_key(config.typed(pickle.loads(data))) for _, _, data in batch}
         if together:  # GA jobs: one seed (problem instance) each, two of them
             assert len(keys) == 1 and None not in keys and len(batch) == 2
         else:
@@ -454,9 +454,10 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
     from hydra.types import HydraContext, RunMode
 
     from hydra_plugins.zrp_ga_launcher import _compose, _workers
+    from hydra_plugins.zrp_ga_launcher.config import ZrpGaLauncherConf
     from zrp_ga import config
     from zrp_ga.cli import main as cli_main
-    from zrp_ga.run import execute
+    from zrp_ga.run.sweep import batch_key
 
     master = hydra_loader.load_configuration("config", ["hydra.mode=MULTIRUN", f"hydra.sweep.dir={tmp_path}"], RunMode.MULTIRUN)
     jobs = [[f"crossover={c}", f"seed={s}"] for c in ("sbx", "blend", "one_point", "two_point") for s in range(6)]
@@ -470,7 +471,7 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
             loader.load_sweep_config(master, overrides)
         if noting and checked:  # the first jobs' configs kept pickled, up to the bytes allowed
             assert 0 < len(loader._pickled) < len(jobs) and not loader._asked
-        launcher = types.SimpleNamespace(config=master, settings=config.ZrpGaLauncherConf(),
+        launcher = types.SimpleNamespace(config=master, settings=ZrpGaLauncherConf(),
                                          hydra_context=HydraContext(config_loader=loader, callbacks=None),
                                          task_function=cli_main.main.__wrapped__)  # fmt: skip
         dispatcher = _workers._Dispatcher(launcher, types.SimpleNamespace(workers=[None, None]),
@@ -481,7 +482,7 @@ def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path
             together, got = batch
             assert together or len(got) == 1
             if together:
-                assert len({execute.batch_key(pickle.loads(data)) for _, _, data in got}) == 1
+                assert len({batch_key(config.typed(pickle.loads(data))) for _, _, data in got}) == 1
             out.append((together, sorted(idx for idx, _, _ in got)))
             for idx, _, data in got:
                 assert OmegaConf.to_yaml(pickle.loads(data)) == OmegaConf.to_yaml(hydra_loader.load_sweep_config(master, jobs[idx]))
@@ -540,7 +541,6 @@ class Recorder:
         calls.append(["end", config.hydra.job.num, HydraConfig.get().job.num, job_return.status.name])
 
 
-config.register()
 jobs = [sys.argv[3:] + o for o in (["crossover=sbx"], ["crossover=blend"], ["algorithm.elite=999"])]
 base = sys.argv[3:] + ["hydra.mode=MULTIRUN"]
 with initialize_config_module("zrp_ga.conf", **config.hydra_options()):

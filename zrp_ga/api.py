@@ -1,7 +1,8 @@
 """The Python entry point for scripts and notebooks: :func:`calibrate`.
 
-It composes the same config as ``zrp-ga`` (so that the defaults are the command line's) and
-builds the problem from the arm and the measurements given in memory. Nothing is written unless
+It composes the same config as ``zrp-ga`` with Hydra (:mod:`zrp_ga.config`: the defaults are
+the command line's), hands it typed to the run layer and builds the problem from the arm and the
+measurements given in memory. Nothing is written unless
 ``out`` is given, and matplotlib's backend is left alone: figures are made on demand.
 
 >>> import zrp_ga
@@ -25,7 +26,8 @@ import numpy as np
 
 from zrp_ga import config
 from zrp_ga.algorithms import Result
-from zrp_ga.core import errors
+from zrp_ga.core import errors, schema, targets
+from zrp_ga.core.schema import ConfigError, MeasuredConf
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.problems import Task
@@ -78,31 +80,29 @@ def _value(v: Any) -> str:
     return "null" if v is None else str(v).lower() if isinstance(v, bool) else str(v)
 
 
-def _load(overrides: list[str]):
-    """The composed config; a value Hydra or OmegaConf refuses is a ConfigError on one line, as
-    ``zrp-ga`` says it (the key, or the options of a config group)."""
+def _load(overrides: list[str]) -> schema.Config:
+    """The composed config, typed; a value Hydra or OmegaConf refuses is a ConfigError on one
+    line, as ``zrp-ga`` says it (the key, or the options of a config group)."""
     try:
         return config.load(overrides)
     except Exception as exc:
         if type(exc).__module__.split(".")[0] in ("hydra", "omegaconf"):
-            raise config.ConfigError(errors.one_line(exc)) from None
+            raise ConfigError(errors.one_line(exc)) from None
         raise
 
 
-def _check_keys(settings: dict[str, Any], cfg, where: str = "") -> None:
-    """A TypeError naming a keyword (or a key of a dict keyword) the config does not have, and
-    the closest ones it has."""
-    from omegaconf import DictConfig
-
+def _check_keys(settings: dict[str, Any], cfg: dict[str, Any], where: str = "") -> None:
+    """A TypeError naming a keyword (or a key of a dict keyword) the config (as plain values,
+    :func:`zrp_ga.core.schema.to_dict`) does not have, and the closest ones it has."""
     for key, value in settings.items():
         if key not in cfg:
-            valid = sorted(k for k in cfg if k != "hydra")
+            valid = sorted(cfg)
             close = difflib.get_close_matches(str(key), valid, n=3)
             hint = f"; did you mean {' or '.join(map(repr, close))}?" if close else f"; valid: {', '.join(valid)}"
             name = f"key {key!r} in {where}{{...}}" if where else f"keyword argument {key!r}"
             raise TypeError(f"calibrate() got an unexpected {name}{hint}")
         if isinstance(value, dict):
-            if not isinstance(cfg[key], DictConfig):
+            if not isinstance(cfg[key], dict):
                 raise TypeError(f"calibrate(): {where}{key} is a single setting, not a dict of settings")
             _check_keys(value, cfg[key], f"{where}{key}=")
 
@@ -170,12 +170,13 @@ def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, 
     from zrp_ga.problems import measured
     from zrp_ga.run import budget, build, execute
     from zrp_ga.run.shared import Cache
+    from zrp_ga.run.together import run_together
 
     measured_problem = data is not None and not isinstance(settings.get("problem"), str)  # problem={...}: its keys
     choices = {k: v for k, v in settings.items() if not isinstance(v, dict)}
     first = _overrides(algorithm, seeds[0], {})  # the keywords first: a misspelt one would stop Hydra
-    _check_keys(dict.fromkeys(settings), _load(["problem=measured"] * measured_problem + first))
-    _check_keys(settings, _load(["problem=measured"] * measured_problem + _overrides(algorithm, seeds[0], choices)))
+    _check_keys(dict.fromkeys(settings), schema.to_dict(_load(["problem=measured"] * measured_problem + first)))
+    _check_keys(settings, schema.to_dict(_load(["problem=measured"] * measured_problem + _overrides(algorithm, seeds[0], choices))))
     over = _overrides(algorithm, seeds[0], settings)
     if measured_problem:
         over.insert(0, "problem=measured")
@@ -183,7 +184,7 @@ def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, 
     arm = robot if isinstance(robot, ZRPRobot) else presets.load(**_robot_source(robot))
     task = None
     if data is not None:
-        conf = config.section(config.MeasuredConf, {k: v for k, v in base.problem.items() if k != "_target_"}, "problem")
+        conf = schema.section(MeasuredConf, base.problem, "problem")
         calib, val = _measurements(data, arm, conf, "data"), _measurements(validation, arm, conf, "validation")
         budget.check_config(base, arm, problem=measured.data_size(arm, conf, calib, val))  # before the work: one line
         task = measured.from_measurements(arm, calib, val, conf)
@@ -192,19 +193,18 @@ def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, 
     cache = Cache()  # the instance is the one built here, not the config's
     prepared = []
     for k, seed in enumerate(seeds):
-        cfg = copy.deepcopy(base)  # DictConfig.copy shares its nodes
-        cfg.seed = seed
-        seeded = task or config.instantiate(cfg.problem, "problem", robot=arm, run_seed=seed)
+        cfg = dataclasses.replace(copy.deepcopy(base), seed=seed)
+        seeded = task or targets.create(cfg.problem, "problem", robot=arm, run_seed=seed)
         prepared.append(build.prepare(cfg, None if outs is None else Path(outs[k]), cache=cache, task=seeded))
     together = len(prepared) > 1 and task is not None and all(
         p.algorithm.checkpointable and not p.algorithm.draws_from_random() for p in prepared)  # the GA on one instance
     if together:
-        ran = execute.run_together(prepared, cache)
+        ran = run_together(prepared, cache)
         failed = [r for r in ran if isinstance(r, Exception)]
         if failed:
             raise failed[0]
     else:
-        ran = [execute.execute(p, None, progress, cache=cache) if p.out is None else execute.run_prepared(p, progress, cache=cache)
+        ran = [execute.execute(p, progress, cache=cache) if p.out is None else execute.run_prepared(p, progress, cache=cache)
                for p in prepared]  # fmt: skip
     out = []
     for p, (result, summary) in zip(prepared, ran):
@@ -219,7 +219,7 @@ def _robot_source(robot: str | Path) -> dict:
     return {"name": str(robot)} if str(robot) in presets.names() else {"file": str(robot)}
 
 
-def _measurements(data, robot: ZRPRobot, c: config.MeasuredConf, what: str) -> Measurements | None:
+def _measurements(data, robot: ZRPRobot, c: MeasuredConf, what: str) -> Measurements | None:
     """``data`` read, or checked and converted as a file is (units from ``problem.length_unit``
     and ``problem.angle_unit``, ``auto`` detected), whatever form it takes."""
     if data is None:

@@ -1,5 +1,5 @@
 """Jobs of a sweep run together: each keeps what Hydra's ``run_job`` gives it, and their runs
-go through one call of :func:`zrp_ga.run.execute.sweep_batch`, which evolves them together.
+go through one call of :func:`zrp_ga.run.sweep.sweep_batch`, which evolves them together.
 
 For each job, as ``run_job`` does it: its output directory, the three ``.hydra`` records
 (``config.yaml``, ``hydra.yaml``, ``overrides.yaml``: the same text Hydra writes), Hydra's view
@@ -326,7 +326,7 @@ def _copy(container: Any) -> Any:
 
 
 def _sweep_job_args(job: _Job) -> tuple[Path, Any, dict]:
-    """A job of a sweep as the run layer takes it (``execute.sweep_job``: its directory, its
+    """A job of a sweep as the run layer takes it (``zrp_ga.run.sweep.SweepJob``: its directory, its
     place in the sweep, the groups' options), from Hydra's config of the job, as
     ``zrp_ga.cli.main.main`` makes them (not imported from there: the command line imports this
     launcher): from the values its ``prepare`` read, resolved where they have interpolations."""
@@ -523,13 +523,14 @@ class _Batch:
 
     def sweep(self, ready: list[_Job]) -> list[Any]:
         """The runs, together (``zrp_ga.cli.main.main``'s part, but the console line)."""
-        from zrp_ga.run import execute
+        from zrp_ga.config import typed
+        from zrp_ga.run.sweep import SweepJob, sweep_batch
 
         tasks = []
         for job in ready:
             with job.around():
-                tasks.append((job.ret.cfg, *_sweep_job_args(job)))
-        return execute.sweep_batch(tasks, around=lambda k: ready[k].around()) if tasks else []
+                tasks.append(SweepJob(typed(job.ret.cfg), *_sweep_job_args(job)))
+        return sweep_batch(tasks, around=lambda k: ready[k].around()) if tasks else []
 
     def end(self, job: _Job, value: Any) -> None:
         """As ``run_job`` after the task: the console line, the status, the callbacks."""

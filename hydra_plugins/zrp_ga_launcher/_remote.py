@@ -3,7 +3,7 @@
 ``hydra.launcher.executor=slurm`` submits the batches as one SLURM job array through submitit's
 public API (``AutoExecutor``, ``map_array``), ``executor=ray`` as Ray tasks (``ray.remote``).
 The driver composes every job's config (with ``_compose``'s cache), puts the jobs of one
-``zrp_ga.run.execute.batch_key`` side by side (those with none, such as LM and CMA-ES, too: they
+``zrp_ga.run.sweep.batch_key`` side by side (those with none, such as LM and CMA-ES, too: they
 run one after another), and cuts them into ``ceil(jobs / runs_per_job)`` batches of nearly equal
 size. A cluster job sets itself up as a spawned worker of ``_workers`` does (Hydra's singletons,
 the task function), runs its batch with ``_batch.run_batch`` (Hydra's ``run_job`` for each job:
@@ -188,9 +188,14 @@ def _last_line(exc: BaseException) -> str:
 
 # --- the driver ---------------------------------------------------------------------------------------
 def _batch_key(cfg: Any) -> Any:
-    from zrp_ga.run.execute import batch_key
+    """The job's batch key (None: it runs alone; so does a job whose config fails here: it fails in its run)."""
+    from zrp_ga.config import typed
+    from zrp_ga.run.sweep import batch_key
 
-    return batch_key(cfg)
+    try:
+        return batch_key(typed(cfg))
+    except Exception:
+        return None
 
 
 def launch(launcher: Any, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> list[JobReturn]:

@@ -5,7 +5,7 @@ the sweep's process calls the warm-up function with the sweep's config (the app'
 compiled code, the first problem instance) and the workers are forked from it, sharing all
 that; elsewhere each spawned worker warms itself up while the sweeper checks the jobs. A
 worker runs the batches it is sent, one after another. Jobs that can be evolved together (the
-same ``zrp_ga.run.execute.batch_key``: GA runs on one problem instance with one population
+same ``zrp_ga.run.sweep.batch_key``: GA runs on one problem instance with one population
 shape) come as one batch, run by :func:`._batch.run_batch` with their runs in one call of the
 run layer; other jobs (and all with ``hydra.launcher.lockstep=false``) one at a time through
 Hydra's ``run_job``, as Hydra's own launchers run them. Each job's ``JobReturn`` goes back as
@@ -225,7 +225,7 @@ class Pool:
     def interrupt(self) -> None:
         """After Ctrl-C: let the workers finish saving; interrupt those that did not get the
         signal, and kill what still runs after that."""
-        for patience, sig in zip(PATIENCE_S, (signal.SIGINT, signal.SIGKILL)):
+        for patience, sig in zip(PATIENCE_S, (signal.SIGINT, getattr(signal, "SIGKILL", signal.SIGTERM))):  # Windows: no SIGKILL
             deadline = time.monotonic() + patience
             while any(w.process.is_alive() for w in self.workers) and time.monotonic() < deadline:
                 time.sleep(0.02)
@@ -416,9 +416,10 @@ class _Dispatcher:
         """The job's ``batch_key`` (None: it runs alone; so does a job whose config fails here:
         it fails in its run, with its own message)."""
         try:
-            from zrp_ga.run import execute
+            from zrp_ga.config import typed
+            from zrp_ga.run.sweep import batch_key
 
-            return execute.batch_key(config)
+            return batch_key(typed(config))
         except Exception:
             return None
 

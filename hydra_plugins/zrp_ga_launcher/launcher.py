@@ -27,11 +27,11 @@ from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig
 
-from zrp_ga.config import ZrpGaLauncherConf  # its settings, stored in Hydra's ConfigStore by zrp_ga.config.register
+from hydra_plugins.zrp_ga_launcher.config import ZrpGaLauncherConf  # its settings, stored in Hydra's ConfigStore there
 
 
 class ZrpGaLauncher(Launcher):
-    """See the module docstring; settings in :class:`zrp_ga.config.ZrpGaLauncherConf`."""
+    """See the module docstring; settings in :class:`hydra_plugins.zrp_ga_launcher.config.ZrpGaLauncherConf`."""
 
     def __init__(self, **settings: Any) -> None:
         self.settings = ZrpGaLauncherConf(**{k: v for k, v in settings.items() if k != "_target_"})

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from zrp_ga.algorithms import Algorithm, AlgorithmSize, Result, evaluations, genomes_bytes
-from zrp_ga.config import ConfigError, PopulationConf, section
 from zrp_ga.core import checks
+from zrp_ga.core.schema import ConfigError, PopulationConf, section
 from zrp_ga.problems.size import FLOAT, ProblemSize
 
 

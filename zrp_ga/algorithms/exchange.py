@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from zrp_ga.algorithms import Algorithm, AlgorithmSize, Result, genomes_bytes
-from zrp_ga.config import ConfigError
 from zrp_ga.core.problem import Sampling
+from zrp_ga.core.schema import ConfigError
 from zrp_ga.problems.size import ProblemSize
 
 

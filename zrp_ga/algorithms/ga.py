@@ -19,10 +19,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from zrp_ga import operators
+import zrp_ga.operators as operators  # the package, not the top module (which leads up to the API)
 from zrp_ga.algorithms import Algorithm, AlgorithmSize, Array, Result, evaluations, genomes_bytes
-from zrp_ga.config import ConfigError, PopulationConf, RefineConf, Repair, SelectionConf, Strategy, VariationConf, section
 from zrp_ga.core.problem import GeneBlocks, LeastSquares, Problem, Repairing, Sampling
+from zrp_ga.core.schema import ConfigError, PopulationConf, RefineConf, Repair, SelectionConf, Strategy, VariationConf, section
 from zrp_ga.operators.base import Streams
 from zrp_ga.operators.repair import repair
 from zrp_ga.problems.size import ProblemSize
@@ -37,7 +37,7 @@ def rank(costs: Array) -> NDArray[np.intp]:
 
 
 class GA(Algorithm):
-    """The paper's GA. Settings come from the config (``zrp_ga.config.GAConf`` and the groups it
+    """The paper's GA. Settings come from the config (``zrp_ga.core.schema.GAConf`` and the groups it
     names); every value is checked here, and an error names the config key."""
 
     checkpointable = True

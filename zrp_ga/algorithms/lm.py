@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from zrp_ga.algorithms import Algorithm, AlgorithmSize, Callback, Result, genomes_bytes
-from zrp_ga.config import ConfigError
 from zrp_ga.core.problem import LeastSquares
+from zrp_ga.core.schema import ConfigError
 from zrp_ga.problems.least_squares import X_SCALE, levenberg_marquardt  # noqa: F401 (X_SCALE: named here as before)
 from zrp_ga.problems.size import FLOAT, ProblemSize
 

@@ -6,7 +6,7 @@ leaves nothing behind; the run it built is handed to :func:`zrp_ga.cli.main`
 (:func:`take_prepared`), which runs it without building it again. :class:`Manifest` refuses a sweep
 whose largest job does not fit the memory (:mod:`zrp_ga.cli.sweep_size`), prepares
 the sweep directory and writes the manifest's table (each job records its own states,
-:func:`zrp_ga.run.execute.sweep_job`).
+:func:`zrp_ga.run.sweep.sweep_job`).
 """
 
 from __future__ import annotations
@@ -37,11 +37,12 @@ class Prepare(Callback):
     """Checks and builds a single run before Hydra creates its directory (see the module docstring)."""
 
     def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        from zrp_ga.config import typed
         from zrp_ga.run import build
 
         _PREPARED.clear()
         try:
-            p = build.prepare(config, Path(config.hydra.run.dir), list(config.hydra.overrides.task),
+            p = build.prepare(typed(config), Path(config.hydra.run.dir), list(config.hydra.overrides.task),
                               dict(config.hydra.runtime.choices))  # fmt: skip
         except (ValueError, OSError) as exc:
             raise Refused(exc) from None

@@ -5,7 +5,8 @@ paper's case study; any setting can be overridden (``zrp-ga problem=multipose se
 
 :func:`main` is the ``@hydra.main`` entry point: it reads what Hydra knows about the run (its
 directory, the command line's overrides, the groups' options, the sweep job) and hands the
-config to the run layer (:mod:`zrp_ga.run`), which checks, runs and records it (a single run
+config, typed (:func:`zrp_ga.config.typed`), to the run layer (:mod:`zrp_ga.run`), which
+checks, runs and records it (a single run
 was checked and built before Hydra made its directory, by the ``Prepare`` callback of
 :mod:`zrp_ga.cli.callbacks`, and is run as built). :func:`cli` is the console script, which
 turns every error in the user's input into one line and exit code 2. Heavy modules are
@@ -28,8 +29,6 @@ from omegaconf import DictConfig
 from zrp_ga import config
 from zrp_ga.core.errors import one_line
 
-config.register()
-
 
 @hydra.main(config_path="pkg://zrp_ga.conf", config_name="config", **config.hydra_options(),
             **({"execution_whitelist": config.TRUSTED_TARGETS} if config.hydra_14() else {}))  # fmt: skip
@@ -40,6 +39,7 @@ def main(cfg: DictConfig) -> float:
     from zrp_ga.cli.callbacks import take_prepared
     from zrp_ga.run import build, execute, summary
     from zrp_ga.run.directory import Sweep
+    from zrp_ga.run.sweep import SweepJob, sweep_job
 
     hc = HydraConfig.get()
     out = Path(hc.runtime.output_dir)
@@ -47,13 +47,26 @@ def main(cfg: DictConfig) -> float:
     overrides = list(hc.overrides.task)
     if hc.mode == RunMode.MULTIRUN:
         sweep = Sweep(Path(hc.sweep.dir), int(hc.job.num), tuple(overrides), str(hc.sweep.subdir))
-        objective = execute.sweep_job(cfg, out, sweep, choices)
+        objective = sweep_job(SweepJob(config.typed(cfg), out, sweep, choices))
         summary.console(out, (hc.job.num, " ".join(overrides)))
     else:
-        p = take_prepared(out) or build.prepare(cfg, out, overrides, choices)  # built once, by Prepare
-        objective = execute.objective(execute.run_prepared(p, bool(cfg.progress)))
+        p = take_prepared(out) or build.prepare(config.typed(cfg), out, overrides, choices)  # built once, by Prepare
+        objective = execute.objective(execute.run_prepared(p, bool(cfg.progress)))  # the command line's (resume keeps it)
         summary.console(p.out)
     return objective
+
+
+def warm_up(cfg: DictConfig) -> None:
+    """zrp_ga's launcher's warm-up (``hydra.launcher.warm_up``) of a sweep of :func:`main`: the
+    run layer's (:func:`zrp_ga.run.execute.warm_up`) on the sweep's config, typed; a config that
+    cannot be typed fails again, with its message, in the jobs themselves."""
+    from zrp_ga.run import execute
+
+    try:
+        typed = config.typed(cfg)
+    except Exception:
+        return
+    execute.warm_up(typed)
 
 
 def cli() -> None:

@@ -89,16 +89,18 @@ def check(config: DictConfig) -> None:
     """Refuse the sweep of ``config`` (ValueError, one line) when its largest job does not fit
     (:func:`zrp_ga.run.budget.check`). A job whose robot, problem or optimiser cannot be built
     (a bad value, a missing file) is left to fail alone, as its job, recorded in the manifest."""
-    from zrp_ga import config as schema
+    from zrp_ga.config import typed
+    from zrp_ga.core import schema, targets
     from zrp_ga.run import budget
 
     robots: dict[str, Any] = {}
     worst: tuple[float, str, Any] | None = None
-    for label, cfg in jobs(config):
+    for label, composed in jobs(config):
         try:
-            key = json.dumps(OmegaConf.to_container(cfg.robot, resolve=True), sort_keys=True, default=str)
+            cfg = typed(composed)
+            key = json.dumps(schema.to_dict(cfg.robot), sort_keys=True, default=str)
             if key not in robots:
-                robots[key] = schema.instantiate(cfg.robot, "robot")
+                robots[key] = targets.create(cfg.robot, "robot")
             e = budget.of_config(cfg, robots[key])
         except (ValueError, OSError):
             continue

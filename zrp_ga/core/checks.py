@@ -37,15 +37,19 @@ def cmaes_population(lambda_: int, key: str = "population.lambda_") -> None:
 
 
 def run_settings(cfg: Any) -> None:
-    """What the whole config must satisfy before anything is built: ``seed`` (and
-    ``problem.seed``) >= 0; an optimiser's own needs of the shared settings (CMA-ES's
-    population)."""
-    seed(cfg.get("seed"), "seed")
-    problem = cfg.get("problem") or {}
-    seed(problem.get("seed"), "problem.seed")
-    target = str((cfg.get("algorithm") or {}).get("_target_", ""))
-    if target.endswith("cmaes.CMAES") and cfg.get("population") is not None:
+    """What the whole config (a :class:`zrp_ga.core.schema.Config`) must satisfy before anything is
+    built: ``seed`` (and ``problem.seed``) >= 0; an optimiser's own needs of the shared settings
+    (CMA-ES's population)."""
+    seed(cfg.seed, "seed")
+    seed(_setting(cfg.problem, "seed"), "problem.seed")
+    target = str(_setting(cfg.algorithm, "_target_") or "")
+    if target.endswith("cmaes.CMAES") and cfg.population is not None:
         cmaes_population(int(cfg.population.lambda_))
+
+
+def _setting(node: Any, key: str) -> Any:
+    """A setting of a section: a dataclass, or a plain dict (a kind without a schema)."""
+    return node.get(key) if isinstance(node, dict) else getattr(node, key, None)
 
 
 ROTVEC = "rotvec"  # the rotation vector (axis x angle), as Universal Robots' controllers report rx, ry, rz

@@ -27,7 +27,7 @@ import dataclasses
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zrp_ga.config import Cost, Kernel, Norm
+from zrp_ga.core.schema import Cost, Kernel, Norm
 from zrp_ga.model import error_model, kinematics, so3
 from zrp_ga.model.layout import Layout
 from zrp_ga.model.poses import Measurements

@@ -25,7 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from zrp_ga.config import ConfigError
+from zrp_ga.core import targets
+from zrp_ga.core.schema import ConfigError
 from zrp_ga.operators import deap_adapter
 from zrp_ga.operators.base import (  # noqa: F401 (the operators' shared helpers, importable from here as before)
     Array,
@@ -91,22 +92,19 @@ def target(node: Mapping[str, Any], key: str, family: str | None = None) -> tupl
     count as given: :func:`build` binds them). ``family``: the operator family (default: the
     first part of ``key``, e.g. ``mutation`` of ``mutation.op``).
 
-    The nodes are Hydra ``_target_`` / ``_partial_`` configs, with the same meaning as
-    ``hydra.utils.instantiate(node)``; they are bound here into a plain ``functools.partial``
-    because hydra-core 1.3.8 wraps instantiated partials in a target-policy check that runs on
-    every call (about 0.4 ms, more than a generation's variation).
+    The nodes are ``_target_`` / ``_partial_`` specs, with the meaning
+    :func:`zrp_ga.core.targets.instantiate` (and Hydra's ``instantiate``) gives them; they are
+    bound here into a plain ``functools.partial`` with the problem's ranges and the generator.
     """
-    from hydra.utils import get_method
-
     params = dict(node)
     name = params.pop("_target_", None)
     params.pop("_partial_", None)
     if not name:
         raise ValueError(f"{key}._target_: an operator needs the dotted name of a function")
     try:
-        fn = get_method(name)
-    except Exception as exc:  # Hydra wraps the import error; keep its first line
-        raise ValueError(f"{key}._target_: cannot import {name!r} ({str(exc).splitlines()[0]})") from None
+        fn = targets.locate(name)
+    except targets.TargetError as exc:
+        raise ValueError(f"{key}._target_: {exc}") from None
     takes = parameters(fn, family or key.split(".")[0])
     unknown = sorted(set(params) - set(takes))
     if unknown:

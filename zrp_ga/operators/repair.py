@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.config import Repair
+from zrp_ga.core.schema import Repair
 from zrp_ga.operators.base import Array, rows
 
 

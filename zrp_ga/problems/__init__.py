@@ -3,8 +3,8 @@ anywhere Python imports it from) with a ``build(robot, run_seed, **settings) -> 
 a ``size(robot, **settings) -> ProblemSize`` function that declares the instance's size before
 it is built (:mod:`zrp_ga.problems.size`; the run's memory and time estimate asks it,
 :mod:`zrp_ga.run.budget`), and one config file in ``conf/problem`` naming it by ``_target_``
-(the kinds here also have a schema in :mod:`zrp_ga.config`; a kind's own may check its
-settings itself). ``run_seed`` is the run's seed; ``settings`` are the ``problem`` node's keys,
+(the kinds here also have a schema in :mod:`zrp_ga.core.schema`; a kind's own needs none,
+and may check its settings itself). ``run_seed`` is the run's seed; ``settings`` are the ``problem`` node's keys,
 its own ``seed`` among them (a named instance's, which the run's seed must not replace).
 
 A :class:`Task` is a problem instance (:class:`zrp_ga.model.cost.CalibrationProblem`, what the
@@ -21,7 +21,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from zrp_ga.config import ProblemConf
+from zrp_ga.core.schema import ProblemConf
 from zrp_ga.model import dh
 from zrp_ga.model.cost import CalibrationProblem
 from zrp_ga.model.layout import Layout, dh_mask, fixed_summary, mask

@@ -32,8 +32,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from zrp_ga.config import Format, MeasuredConf, Ranges, section
 from zrp_ga.core.errors import warn
+from zrp_ga.core.schema import Format, MeasuredConf, Ranges, section
 from zrp_ga.io import measurements, records
 from zrp_ga.model import error_model, metrics
 from zrp_ga.model.cost import CalibrationProblem, model_rank
@@ -133,7 +133,7 @@ def measured_format(robot: ZRPRobot, c: MeasuredConf) -> measurements.Format:
 
 
 def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> MeasuredTask:
-    """Read and split the measurement files of ``settings`` (``zrp_ga.config.MeasuredConf``'s
+    """Read and split the measurement files of ``settings`` (``zrp_ga.core.schema.MeasuredConf``'s
     keys, :func:`read_sets`), then :func:`from_measurements`."""
     c: MeasuredConf = section(MeasuredConf, settings, "problem")
     return from_measurements(robot, *read_sets(robot, run_seed, c), c)

@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zrp_ga.config import Cost, Index, PoseSelectionConf, section
 from zrp_ga.core.problem import GeneBlocks, Problem, Repairing, Sampling
+from zrp_ga.core.schema import Cost, Index, PoseSelectionConf, section
 from zrp_ga.io import records
 from zrp_ga.model import error_model, metrics, observability, simulation
 from zrp_ga.model.cost import CalibrationProblem
@@ -330,7 +330,7 @@ def measured(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any]
 
 
 def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> SelectionTask:
-    """The pose-selection instance of ``settings`` (``zrp_ga.config.PoseSelectionConf``'s keys):
+    """The pose-selection instance of ``settings`` (``zrp_ga.core.schema.PoseSelectionConf``'s keys):
     simulated candidates, or the rows of ``calibration_file``."""
     c: PoseSelectionConf = section(PoseSelectionConf, settings, "problem")
     parts = measured(robot, run_seed, c) if c.calibration_file else simulated(robot, run_seed, c)

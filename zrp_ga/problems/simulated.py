@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.config import SimulatedConf, section
+from zrp_ga.core.schema import SimulatedConf, section
 from zrp_ga.model import metrics, simulation
 from zrp_ga.model.cost import CalibrationProblem
 from zrp_ga.model.layout import Layout
@@ -17,7 +17,7 @@ from zrp_ga.problems.size import ProblemSize, calibration
 
 
 def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> Task:
-    """The instance of ``settings`` (``zrp_ga.config.SimulatedConf``'s keys) for ``robot``.
+    """The instance of ``settings`` (``zrp_ga.core.schema.SimulatedConf``'s keys) for ``robot``.
     The problem draws from a random stream of its own, ``[problem.seed or run_seed, 1]`` (with
     the optimiser's, the first genome would be the true errors): a named instance keeps its
     ``problem.seed`` whatever the run's seed. Fixed parameters (``problem.fixed``) are the

@@ -50,6 +50,8 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from zrp_ga.algorithms import AlgorithmSize, evaluations, genomes_bytes
+from zrp_ga.core import targets
+from zrp_ga.core.schema import MISSING, ConfigError, setting
 from zrp_ga.problems.size import Lower, ProblemSize, calibration
 
 log = logging.getLogger(__name__)
@@ -94,19 +96,20 @@ def estimate(problem: ProblemSize, algorithm: AlgorithmSize, notes: tuple[str, .
 
 # --- what the problem kind and the optimiser declare -----------------------------------------------
 def _settings(node: Any) -> dict[str, Any]:
-    """A config node's settings (a mapping's items or a dataclass's fields), ``_target_`` left out."""
+    """A config node's settings (a mapping's items or a dataclass's fields), ``_target_`` and the
+    settings without a value (``???``: the kind's default, as when it is built) left out."""
     if dataclasses.is_dataclass(node):
         items = {f.name: getattr(node, f.name) for f in dataclasses.fields(node)}
     else:
         items = {k: node[k] for k in node}
-    return {str(k): v for k, v in items.items() if not str(k).startswith("_")}
+    return {str(k): v for k, v in items.items() if not str(k).startswith("_") and not (isinstance(v, str) and v == MISSING)}
 
 
 def problem_size(node: Any, robot: Any) -> tuple[ProblemSize, tuple[str, ...]]:
     """What the problem kind of config node ``node`` (its ``_target_``) declares for ``robot``:
     ``size(robot, **settings)`` of the kind's module; else the generic count (module
     docstring) and a note saying so."""
-    target = str(getattr(node, "_target_", "") or "")
+    target = str(setting(node, "_target_") or "")
     module = target.rpartition(".")[0]
     try:
         declared = getattr(importlib.import_module(module), "size", None) if module else None
@@ -117,8 +120,6 @@ def problem_size(node: Any, robot: Any) -> tuple[ProblemSize, tuple[str, ...]]:
         try:
             return declared(robot, **settings), ()
         except TypeError as exc:  # a setting its size() does not take (its build would not either)
-            from zrp_ga.config import ConfigError
-
             raise ConfigError(f"problem: {module}.size: {exc}") from None
     genes = _generic_genes(robot.n)
     poses, validation = _count(settings.get("n_poses"), 1), _count(settings.get("n_validation"), 0)
@@ -164,9 +165,7 @@ def of_config(cfg: Any, robot: Any, problem: ProblemSize | None = None, algorith
     if problem is None:
         problem, notes = problem_size(cfg.problem, robot)
     if algorithm is None:
-        from zrp_ga import config
-
-        algorithm = config.instantiate(cfg.algorithm, "algorithm", root=cfg)
+        algorithm = targets.create(cfg.algorithm, "algorithm")
     sized, more = algorithm_size(algorithm, cfg, problem)
     return estimate(problem, sized, notes + more)
 

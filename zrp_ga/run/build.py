@@ -4,7 +4,12 @@
 the experiments, the launcher's workers): the config's values, the run directory (writable,
 holding no other run), ``resume`` (a checkpoint, no other settings), what the problem kind
 allows (``objective=over_floor`` needs a floor). Every error is a
-:class:`~zrp_ga.config.ConfigError` (or an OSError) naming what is wrong in one line.
+:class:`~zrp_ga.core.schema.ConfigError` (or an OSError) naming what is wrong in one line.
+
+The config is the typed :class:`~zrp_ga.core.schema.Config` (Hydra's composition, the command
+line's, turned typed by :mod:`zrp_ga.config`; a checkpoint's, by
+:func:`~zrp_ga.core.schema.from_dict`); its robot, problem and optimiser are built from their
+``_target_`` specs by :func:`zrp_ga.core.targets.create`.
 """
 
 from __future__ import annotations
@@ -16,11 +21,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from omegaconf import DictConfig, OmegaConf
-
-from zrp_ga import config
-from zrp_ga.config import ConfigError
-from zrp_ga.core import checks
+from zrp_ga.core import checks, schema, targets
+from zrp_ga.core.schema import Config, ConfigError, Objective
 from zrp_ga.problems.protocol import SelfJudging
 from zrp_ga.run import budget, directory
 from zrp_ga.run.shared import CACHE, Cache
@@ -33,22 +35,17 @@ RESUME_KEEPS = ("resume=", "progress=", "hydra.")
 class Prepared:
     """A checked config and what it builds."""
 
-    cfg: DictConfig  # the run's config, without Hydra's node
+    cfg: Config  # the run's config
     task: Any  # zrp_ga.problems.Task
     algorithm: Any  # zrp_ga.algorithms.Algorithm
     state: dict | None  # a checkpoint's state when resuming
     out: Path | None  # the run directory (None: no files)
     instance: str  # the problem instance's key (zrp_ga.run.shared)
     choices: dict[str, Any] = dataclasses.field(default_factory=dict)  # the config's group options, for summary.json
-    resolved: dict[str, Any] = dataclasses.field(default_factory=dict)  # cfg as plain values (config.resolved), for the files
+    resolved: dict[str, Any] = dataclasses.field(default_factory=dict)  # cfg as plain values (schema.to_dict), for the files
 
 
-def task_config(cfg: DictConfig) -> DictConfig:
-    """``cfg`` without Hydra's ``hydra`` node."""
-    return OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]) if "hydra" in cfg else cfg
-
-
-def prepare(cfg: DictConfig, out: Path | None, overrides: Sequence[str] = (), choices: dict | None = None,
+def prepare(cfg: Config, out: Path | None, overrides: Sequence[str] = (), choices: dict | None = None,
             cache: Cache = CACHE, task: Any = None) -> Prepared:  # fmt: skip
     """Check ``cfg`` and build its objects, before ``out`` is created (None: no run directory).
     With ``resume``, the checkpoint's run instead, in its own directory; ``overrides``: the
@@ -56,9 +53,8 @@ def prepare(cfg: DictConfig, out: Path | None, overrides: Sequence[str] = (), ch
     the config groups' options (Hydra's), recorded in ``summary.json``. ``task``: the problem
     instance, when it was built from data in memory (:func:`zrp_ga.calibrate`) rather than
     from the config's files (then with a ``cache`` of its own: the key does not describe it)."""
-    cfg = task_config(cfg)
     state = None
-    if cfg.get("resume"):
+    if cfg.resume:
         out, state, cfg = _resume(cfg, overrides)
         choices = state.pop("choices", None) or {}
         recorded = state.pop("inputs", None)
@@ -75,7 +71,7 @@ def prepare(cfg: DictConfig, out: Path | None, overrides: Sequence[str] = (), ch
     return build(cfg, out, state, choices or {}, cache, task)
 
 
-def build(cfg: DictConfig, out: Path | None, state: dict | None, choices: dict, cache: Cache = CACHE,
+def build(cfg: Config, out: Path | None, state: dict | None, choices: dict, cache: Cache = CACHE,
           task: Any = None) -> Prepared:  # fmt: skip
     """The robot, problem and optimiser of the checked task config ``cfg``; the problem
     instance ``task`` if given, else from ``cache`` when it was built before."""
@@ -84,7 +80,7 @@ def build(cfg: DictConfig, out: Path | None, state: dict | None, choices: dict, 
     if cfg.checkpoint_every < 0:
         raise ConfigError(f"checkpoint_every: must be >= 0, got {cfg.checkpoint_every}")
     checks.run_settings(cfg)  # seeds, an optimiser's needs of the shared settings (zrp_ga.core.checks)
-    resolved = config.resolved(cfg)
+    resolved = schema.to_dict(cfg)
     key = instance_key(cfg, resolved)
     if task is None:
         def limited() -> Any:
@@ -92,30 +88,27 @@ def build(cfg: DictConfig, out: Path | None, state: dict | None, choices: dict, 
                 return _instance(cfg)
 
         task = cache.instance(key, limited)  # built once per instance (threadpoolctl's set-up costs ms)
-    algorithm = config.instantiate(cfg.algorithm, "algorithm", root=cfg)
+    algorithm = targets.create(cfg.algorithm, "algorithm")
     if state is not None and not algorithm.checkpointable:
         raise ConfigError(f"resume: {type(algorithm).__name__} runs keep no checkpoints")
-    if cfg.objective is config.Objective.over_floor and isinstance(task, SelfJudging):
+    if cfg.objective is Objective.over_floor and isinstance(task, SelfJudging):
         raise ConfigError("objective: over_floor divides by a calibration's floor; this problem kind has none (use final_cost)")
     return Prepared(cfg, task, algorithm, state, out, key, dict(choices), resolved)
 
 
-def instance_key(cfg: DictConfig, resolved: dict | None = None) -> str:
-    """The problem instance's key: the resolved robot and problem settings and the seed, as
-    JSON, with the size and modification time of the files they name (an edited file is another
-    instance). ``resolved``: ``cfg`` resolved already (:func:`zrp_ga.config.resolved`)."""
-    if resolved is None:
-        parts = {k: OmegaConf.to_container(cfg[k], resolve=True, enum_to_str=True) for k in ("robot", "problem")}
-    else:
-        parts = {k: resolved[k] for k in ("robot", "problem")}
+def instance_key(cfg: Config, resolved: dict | None = None) -> str:
+    """The problem instance's key: the robot and problem settings as plain values and the seed,
+    as JSON, with the size and modification time of the files they name (an edited file is
+    another instance). ``resolved``: ``cfg`` as plain values already (:func:`schema.to_dict`)."""
+    parts = {k: resolved[k] if resolved is not None else schema.to_dict(getattr(cfg, k)) for k in ("robot", "problem")}
     return json.dumps({**parts, "seed": int(cfg.seed), "files": _stamps(cfg)}, sort_keys=True)
 
 
-def _stamps(cfg: DictConfig) -> list:
+def _stamps(cfg: Config) -> list:
     from zrp_ga.data import resolve
 
     out = []
-    for name in (cfg.robot.get("file"), *(cfg.problem.get(k) for k in DATA_KEYS)):
+    for name in (cfg.robot.file, *(schema.setting(cfg.problem, k) for k in DATA_KEYS)):
         if name:
             try:
                 st = resolve(str(name)).stat()
@@ -125,10 +118,10 @@ def _stamps(cfg: DictConfig) -> list:
     return out
 
 
-def _instance(cfg: DictConfig) -> Any:
-    robot = config.instantiate(cfg.robot, "robot")
+def _instance(cfg: Config) -> Any:
+    robot = targets.create(cfg.robot, "robot")
     budget.check_config(cfg, robot)  # memory and time, before the problem is built (zrp_ga.run.budget)
-    return config.instantiate(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
+    return targets.create(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
 
 
 def _not_in_use(out: Path) -> None:
@@ -151,7 +144,7 @@ def check_writable(out: Path) -> None:
             return
 
 
-def _resume(cfg: DictConfig, overrides: Sequence[str]) -> tuple[Path, dict, DictConfig]:
+def _resume(cfg: Config, overrides: Sequence[str]) -> tuple[Path, dict, Config]:
     """The run directory, checkpoint state and config of ``resume=DIR``; the other settings of
     the command line are refused (the run continues with its own)."""
     from zrp_ga.run import checkpoint
@@ -167,23 +160,20 @@ def _resume(cfg: DictConfig, overrides: Sequence[str]) -> tuple[Path, dict, Dict
     return out, state, typed(state.pop("config"))
 
 
-def typed(stored: dict) -> DictConfig:
+def typed(stored: dict) -> Config:
     """A config read back from a file (plain values: Enums as their strings) with the schema's
     types again, so that a resumed run sees the same config as the run it continues; a value
     the schema refuses is a ConfigError naming the key."""
-    from omegaconf.errors import OmegaConfBaseException
-
     try:
-        return OmegaConf.merge(OmegaConf.structured(config.Config), stored)
-    except OmegaConfBaseException as exc:
-        key = getattr(exc, "full_key", None) or "the config"
-        raise ConfigError(f"resume: the checkpoint's config is not valid at {key}: {str(exc).splitlines()[0]}") from None
+        return schema.from_dict(stored)
+    except ConfigError as exc:
+        raise ConfigError(f"resume: the checkpoint's config is not valid at {exc}") from None
 
 
 DATA_KEYS = ("calibration_file", "validation_file")  # the problem's files, hashed into a checkpoint
 
 
-def inputs(cfg: DictConfig, task: Any) -> dict[str, str]:
+def inputs(cfg: Config, task: Any) -> dict[str, str]:
     """What a run's result depends on besides its config, as hashes: the robot as built (its
     arrays and joint types) and the contents of the problem's data files, so that a resumed run
     can tell that they changed since its checkpoint."""
@@ -203,7 +193,7 @@ def inputs(cfg: DictConfig, task: Any) -> dict[str, str]:
             h.update(f.name.encode() + v.encode())
     out = {"robot": h.hexdigest()}
     for key in DATA_KEYS:
-        name = cfg.problem.get(key)
+        name = schema.setting(cfg.problem, key)
         if name:
             try:
                 out[f"problem.{key}"] = hashlib.sha256(resolve(str(name)).read_bytes()).hexdigest()
@@ -221,6 +211,6 @@ def check_inputs(p: Prepared, recorded: dict | None, what: str = "resume") -> No
     changed = [k for k in recorded if now.get(k) != recorded[k]]
     if changed:
         k = changed[0]
-        name = "the robot" if k == "robot" else f"{k} ({p.cfg.problem.get(k.split('.', 1)[1])})"
+        name = "the robot" if k == "robot" else f"{k} ({schema.setting(p.cfg.problem, k.split('.', 1)[1])})"
         raise ConfigError(f"{what}: {name} changed since the checkpoint in {p.out} was written; "
                           "the run cannot continue on it (start a new run)")  # fmt: skip

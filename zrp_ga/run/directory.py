@@ -56,31 +56,41 @@ def holds_run(out: Path) -> bool:
     return any((out / f).exists() for f in RUN_FILES)
 
 
-LOCK = ".zrp_ga.lock"  # held by the process writing into a run directory (fcntl.flock)
+LOCK = ".zrp_ga.lock"  # held by the process writing into a run directory (filelock)
 
 
 @contextlib.contextmanager
 def locked(out: Path) -> Iterator[None]:
     """Hold ``out``'s lock while the block runs (released at exit, also when the process dies):
-    a second run into the same directory is refused with a ConfigError naming the process
-    that holds it."""
-    import fcntl
+    a second run into the same directory, from this process or another, is refused with a
+    ConfigError naming the process that holds it. The lock is ``filelock``'s: ``flock`` on
+    Linux and macOS, ``LockFileEx`` on Windows, a file naming its holder where neither exists
+    (taken over when that process is gone)."""
+    from filelock import FileLock, Timeout
 
-    from zrp_ga.config import ConfigError
+    from zrp_ga.core.schema import ConfigError
 
-    fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    lock = FileLock(out / LOCK, timeout=0)
     try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            other = os.read(fd, 32).decode(errors="replace").strip() or "unknown"
-            raise ConfigError(f"{out}: another run (process {other}) is writing into this directory; "
-                              "wait for it to end or choose another directory") from None  # fmt: skip
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        lock.acquire()
+    except Timeout:
+        raise ConfigError(f"{out}: another run (process {_holder(out)}) is writing into this directory; "
+                          "wait for it to end or choose another directory") from None  # fmt: skip
+    try:
+        if type(lock).__name__ != "SoftFileLock":  # a soft lock's file names its holder itself
+            with contextlib.suppress(OSError):  # Windows: the locked file is not written (the holder is then unknown)
+                (out / LOCK).write_text(str(os.getpid()))
         yield
     finally:
-        os.close(fd)  # releases the lock
+        lock.release()
+
+
+def _holder(out: Path) -> str:
+    """The process holding ``out``'s lock, as its lock file says (the first line)."""
+    try:
+        return (out / LOCK).read_text(errors="replace").split("\n", 1)[0].strip() or "unknown"
+    except OSError:
+        return "unknown"
 
 
 def remove_temporary(out: Path) -> None:

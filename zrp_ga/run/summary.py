@@ -32,8 +32,8 @@ from typing import Any
 import numpy as np
 
 from zrp_ga.algorithms import Result
-from zrp_ga.config import Cost, Objective
 from zrp_ga.core.errors import warn
+from zrp_ga.core.schema import Cost, Objective
 from zrp_ga.io import records, robot_files
 from zrp_ga.model import error_model
 from zrp_ga.problems import Task

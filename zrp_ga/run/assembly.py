@@ -1,0 +1,142 @@
+"""What a run is made of besides its config's objects, written once for a run alone
+(:mod:`zrp_ga.run.execute`) and for runs evolved together (:mod:`zrp_ga.run.together`): its
+start (the random streams, seeded from ``seed``, and the callbacks), its directory's lock and
+status (``running``, then ``done``, ``failed`` or ``interrupted``) and the sweep manifest's line,
+and its end (the summary, the objective, the files and the warnings).
+
+Runs evolved together differ in two settings only: their convergence rows are kept in memory
+between checkpoints, and their checkpoints are written no sooner than :data:`BATCH_CHECKPOINT_S`
+after the last (a batch of short runs then writes each run's checkpoint once).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import logging
+import random
+from pathlib import Path
+from typing import Any
+
+from zrp_ga.core.errors import warn
+from zrp_ga.run import directory
+from zrp_ga.run.build import Prepared, inputs
+from zrp_ga.run.directory import Sweep
+from zrp_ga.run.shared import Cache
+
+log = logging.getLogger("zrp_ga")
+
+# Runs evolved together save their checkpoints every checkpoint_every generations, but no sooner
+# than this many seconds after the last (and at the end, and at Ctrl-C): a batch of short runs
+# then writes each run's checkpoint once, and a kill loses at most this much of a batch's work.
+BATCH_CHECKPOINT_S = 10.0
+INTERRUPTED = "KeyboardInterrupt: continue by running the sweep again"  # a sweep job's manifest line at Ctrl-C
+
+
+@dataclasses.dataclass
+class Start:
+    """What a prepared run starts from: the optimiser's generator (``[seed, 0]``; problems draw
+    from ``[seed, 1]`` and up), the state of Python's ``random`` after ``random.seed(seed)``
+    (DEAP's own operators draw from it) and the callbacks, in their order."""
+
+    rng: Any  # numpy.random.Generator
+    random_state: tuple
+    callbacks: list
+
+
+def start(p: Prepared, progress: bool, together: bool = False, hashed: dict[str, dict] | None = None) -> Start:
+    """The start of ``p`` (``together``: evolved with other runs); ``hashed``: the hashes of the
+    robot and data files of the instances seen so far (:func:`zrp_ga.run.build.inputs`, computed
+    once per instance)."""
+    import numpy as np
+
+    from zrp_ga.run import callbacks
+
+    seed = int(p.cfg.seed)
+    before = random.getstate()
+    random.seed(seed)
+    seeded = random.getstate()
+    random.setstate(before)
+    cbs: list = [callbacks.Timing(), callbacks.Validation(p.task.judge)]
+    if p.out is not None:
+        rows = callbacks.ConvergenceLog(p.out / directory.CONVERGENCE, None if p.state is None else int(p.state["gen"]),
+                                        buffered=together)  # fmt: skip
+        cbs.append(rows)
+        every = int(p.cfg.checkpoint_every) if p.algorithm.checkpointable else 0
+        if every:
+            hashed = {} if hashed is None else hashed
+            if p.instance not in hashed:  # the runs of a batch share their instance: hashed once
+                hashed[p.instance] = inputs(p.cfg, p.task)
+            cbs.append(callbacks.Checkpoint(p.out / directory.CHECKPOINT, every, p.resolved, p.choices, hashed[p.instance],
+                                            BATCH_CHECKPOINT_S if together else 0.0, rows.flush if together else None))  # fmt: skip
+    if progress:
+        cbs.append(callbacks.Progress())
+    return Start(np.random.default_rng([seed, 0]), seeded, cbs)
+
+
+def diagnostics(p: Prepared, cache: Cache, sweep: Sweep | None) -> dict[str, Any]:
+    """The identifiability of the run's data (:func:`zrp_ga.run.summary.diagnostics`)."""
+    from zrp_ga.run import summary
+
+    return summary.diagnostics(p.task, p.state is None, p.instance, cache, _where(sweep))
+
+
+def finish(p: Prepared, result: Any, figures: dict[str, Any], cache: Cache, sweep: Sweep | None) -> tuple[Any, dict]:
+    """The run's end (``figures``: its :func:`diagnostics`): its summary and objective, its files
+    (with a directory) and its warnings; the result and the summary."""
+    from zrp_ga.run import summary
+
+    written, x = summary.build(p.task, result, p.cfg, p.resolved, figures, p.algorithm.elapsed(), p.choices)
+    written["objective"] = summary.objective(p.cfg, p.task, written, p.instance, cache, _where(sweep))
+    if p.out is not None:
+        summary.write(p.out, p.task, result, written, x)
+    for w in written["warnings"]:
+        warn(w, log)
+    return result, written
+
+
+def _where(sweep: Sweep | None) -> Path | None:
+    return None if sweep is None else sweep.dir
+
+
+# --- the directory's status and the manifest ----------------------------------------------------------
+def begin(p: Prepared, stack: contextlib.ExitStack) -> None:
+    """Hold ``p``'s run directory (created if need be) while ``stack`` is open: its lock (one run
+    per directory at a time), what a killed run left removed, status ``running``."""
+    if p.out is None:
+        return
+    p.out.mkdir(parents=True, exist_ok=True)
+    stack.enter_context(directory.locked(p.out))
+    directory.remove_temporary(p.out)
+    directory.write_status(p.out, "running")
+
+
+def done(p: Prepared, sweep: Sweep | None) -> None:
+    """The run finished: status ``done``, and the manifest's line for a sweep's job."""
+    if p.out is not None:
+        directory.write_status(p.out, "done")
+    if sweep is not None:
+        directory.record(sweep, "done")
+
+
+def stopped(p: Prepared | None, sweep: Sweep | None, exc: BaseException) -> None:
+    """The run (``p``: None before it was prepared) stopped by ``exc``: Ctrl-C (``interrupted``)
+    or a failure (``failed``), said in its directory (whose lock it holds) where the report will
+    look, and in the manifest for a sweep's job."""
+    interrupted = isinstance(exc, KeyboardInterrupt)
+    if p is not None and p.out is not None:
+        directory.remove_temporary(p.out)
+        named = isinstance(exc, OSError) and exc.filename  # repr leaves the file out
+        with contextlib.suppress(OSError):  # a full disk: the error itself tells
+            directory.write_status(p.out, "interrupted" if interrupted else "failed",
+                                   f"{type(exc).__name__}: {exc}" if named else repr(exc))  # fmt: skip
+    if sweep is not None:
+        record_stop(sweep, exc)
+
+
+def record_stop(sweep: Sweep, exc: BaseException) -> None:
+    """A sweep job's manifest line for ``exc``: interrupted at Ctrl-C, else failed with its first line."""
+    if isinstance(exc, KeyboardInterrupt):
+        directory.record(sweep, "interrupted", INTERRUPTED)
+    else:
+        directory.record(sweep, "failed", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
