@@ -42,7 +42,7 @@ from zrp_ga.model.metrics import Judge
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.registration import Registration, register
 from zrp_ga.model.robot import ZRPRobot
-from zrp_ga.problems import Task, half_ranges, masked
+from zrp_ga.problems import Task, half_ranges, identify, masked
 
 log = logging.getLogger(__name__)
 POSE_ERRORS = "pose_errors.csv"
@@ -143,6 +143,8 @@ def read_sets(robot: ZRPRobot, seed: int, c: MeasuredConf) -> tuple[Measurements
     or the calibration file split at random. The validation file is read in the units the
     calibration file was found in."""
     fmt = measured_format(robot, c)
+    if c.format is Format.zrp:
+        orientation_columns(header(data_path(c.calibration_file)), c.calibration_file, c)
     calib = measurements.read(data_path(c.calibration_file), fmt, robot, c.drop_bad_rows)
     if c.validation_file:
         length, joint = calib.units
@@ -154,12 +156,48 @@ def read_sets(robot: ZRPRobot, seed: int, c: MeasuredConf) -> tuple[Measurements
     return calib, None
 
 
+def header(path: Path) -> list[str]:
+    """The column names of a zrp CSV file (none if it cannot be read: reading it says why)."""
+    if not Path(path).is_file():  # a FIFO or a device is never opened here (reading it refuses it)
+        return []
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            return [c.strip() for c in f.readline().split(",")]
+    except OSError:
+        return []
+
+
+def orientation_columns(columns: list[str], source: Any, c: MeasuredConf) -> None:
+    """Measured orientations (``rx, ry, rz``) without a stated convention are refused in one
+    line naming the setting, unless ``problem.use_orientation=false`` says to leave them out."""
+    if c.orientation_convention is None and c.use_orientation is not False and {"rx", "ry", "rz"} <= set(columns):
+        raise ValueError(f"problem.orientation_convention: {source} has orientation columns rx, ry, rz but no convention is "
+                         "stated: set it (an Euler sequence such as XYZ intrinsic or xyz extrinsic, or rotvec as UR "
+                         "controllers report), or problem.use_orientation=false to fit positions only")  # fmt: skip
+
+
+def resolve_orientation(calib: Measurements, c: MeasuredConf) -> tuple[MeasuredConf, list[str]]:
+    """``c`` with ``use_orientation`` decided: as set, or (null) whenever the calibration data
+    hold orientations of one tool point; a warning when orientations are left out."""
+    if c.use_orientation is not None:
+        return c, []
+    use = calib.R is not None and len(calib.tool_names) <= 1
+    why = []
+    if calib.R is not None and not use:
+        why = [f"{calib.source} measures orientations of {len(calib.tool_names)} tool points; they are not fitted "
+               "(orientations are supported with one tool): positions only"]  # fmt: skip
+    return dataclasses.replace(c, use_orientation=use), why
+
+
 def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | None, c: MeasuredConf,
-                      underdetermined: bool = False) -> MeasuredTask:  # fmt: skip
+                      underdetermined: bool = False, prepared: bool = True) -> MeasuredTask:  # fmt: skip
     """Register ``robot`` to the calibration points, then the calibration problem in the
     instrument's frame; ``val`` (or None) validates (module docstring). Too few points for the
     parameters are refused unless ``underdetermined`` (pose selection judges small subsets so,
-    and says how many directions they identify)."""
+    and says how many directions they identify). ``prepared``: the problem passes its set-up
+    (:func:`zrp_ga.problems.identify.prepare`: noise, outliers, the identified genome); pose
+    selection's calibrations do not."""
+    c, left_out = resolve_orientation(calib, c)
     _check_asked(calib, c)
     names = calib.tool_names or ("tool",)
     known = {str(k): np.asarray(v, dtype=float) * measurements.LENGTH[calib.units[0]] for k, v in (c.known_tools or {}).items()}
@@ -173,7 +211,7 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
         _check_enough(robot, len(names), calib, bool(c.use_orientation))
     reg = register(robot, calib.q, calib.p, rotations=calib.R if c.use_orientation else None, tools=calib.tool,
                    tool_names=names)  # fmt: skip
-    warnings = shared + _registration_warnings(robot, reg, calib)
+    warnings = left_out + shared + _registration_warnings(robot, reg, calib)
     nominal = reg.apply(robot)
     fixed_info: dict[str, Any] = {}
     layout = masked(c, Layout(robot.n, base=True, hand=bool(c.use_orientation), tools=tuple(map(tuple, reg.tools[1:] - reg.tool)),
@@ -181,17 +219,23 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
     half = gene_half_widths(layout, nominal, calib.q, reg, c) if c.ranges is Ranges.data else half_ranges(c, layout)
     data = calib.for_calibration(c.use_orientation, c.use_weights)
     problem = CalibrationProblem(nominal, data, layout, -half, half, c.cost, c.norm, c.orientation_weight, c.kernel)
+    setup = None
+    if prepared:
+        problem, setup = identify.prepare(problem, half / c.search_scale, c.search_scale, c)
     validation = val.for_calibration() if val is not None else None
     name = c.name or f"{robot.name}-{Path(calib.source).stem}"
     info = {"kind": "measured", "files": {"calibration": calib.source, "validation": val.source if val is not None else None},
             "units": {"length": calib.units[0], "joint_angle": calib.units[1]}, "tools": list(names),
+            "use_orientation": bool(c.use_orientation),
             **({"known_tools": {k: v.tolist() for k, v in known.items()}} if known else {}),
-            **fixed_info, "gene_half_widths": dict(zip(layout.names, half.tolist()))}  # fmt: skip
+            **fixed_info, "gene_half_widths": dict(zip(problem.names, problem.upper.tolist())),
+            **({"parameter_half_widths": dict(zip(layout.names, half.tolist()))} if problem.layout is not layout else {})}  # fmt: skip
     sets = {"calibration": calib, **({"validation": val} if val is not None else {})}
-    judge = Judge(layout, nominal, validation, registration=c.validation_registration.value)
+    judge = Judge(problem.layout, nominal, validation, registration=c.validation_registration.value)
     for w in warnings:
         warn(w, log)
-    return MeasuredTask(name, problem, judge, robot, info, warnings, registration=reg, sets=sets)
+    return MeasuredTask(name, problem, judge, robot, info, warnings, setup, c.if_worse.value if c.if_worse else None,
+                        registration=reg, sets=sets)  # fmt: skip
 
 
 def _check_asked(calib: Measurements, c: MeasuredConf) -> None:

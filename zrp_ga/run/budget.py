@@ -12,9 +12,10 @@ positions, 6 with orientations), M calibration and V validation poses, ``R = r M
   twice, the stacked Jacobian ``(R, K)`` the problem keeps and two more in the identifiability
   SVD; the text of the measurement file while it is read (about 160 bytes a cell);
 - **validation**: the same Jacobians and file text for the validation poses;
-- **parameters**: five ``(K, K)`` matrices (the SVD's ``V``, the identity whose rows name
+- **parameters**: eight ``(K, K)`` matrices (the SVD's ``V``, the identity whose rows name
   unidentifiable genes, the null-space basis and its QR, the projector on the identifiable
-  directions);
+  directions; the identified subspace's: the axes' tangent basis, the directions, the factor
+  of the prior of those left at nominal);
 - **population**: P genomes at once, each with two residual vectors ``(R,)`` (the linear cost's
   ``y - X J^T``), its genes twice and DEAP's objects (about 600 bytes); pose selection: the
   information matrices ``(m, m)`` and their per-pose blocks; CMA-ES: a ``(P, P)`` matrix.
@@ -102,7 +103,7 @@ def memory_parts(s: Size) -> dict[str, float]:
     parts = {
         "poses": jac(s.poses) + FLOAT * 3 * R * K + CELL_BYTES * s.cells[0],
         "validation": jac(s.validation) + CELL_BYTES * s.cells[1],
-        "parameters": FLOAT * 5 * K * K,
+        "parameters": FLOAT * 8 * K * K,
         "population": s.population * per_genome + FLOAT * s.cmaes * s.population**2,
     }
     return {k: MARGIN * v for k, v in parts.items()}
