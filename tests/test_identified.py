@@ -35,8 +35,8 @@ def planted(rng, p, s, rows=12):
 def test_identified_directions_are_those_whose_standard_error_is_small(rng):
     p = np.array([1.0, 2.0, 0.5, 1.0, 3.0])
     s = np.array([100.0, 10.0, 2.5, 1.5, 0.0])  # standard errors 0.01, 0.1, 0.4 | 0.67, inf
-    J, V = planted(rng, p, s)
-    sub = subspace.identify(J, np.zeros((0, 5)), p, np.ones(len(J)), max_se=0.5)
+    J, V = planted(rng, p, 2.0 * s)  # rows with noise 2: whitened, the singular values s
+    sub = subspace.identify(J, np.zeros((0, 5)), p, np.full(len(J), 2.0), max_se=0.5)
     assert sub.rank == 3 and sub.exact_rank == 4
     assert np.max(subspace_angles(sub.basis, p[:, None] * V[:, :3])) < 1e-9  # span(diag(p) V_r)
     assert np.allclose(sub.dual @ sub.basis, np.eye(3), atol=1e-12)
@@ -65,9 +65,12 @@ def test_gene_ranges_are_the_boxs_projection_capped(rng):
     scale = 2.0
     box = [(-scale * q, scale * q) for q in p]
     biggest = np.array([-linprog(-g, bounds=box).fun for g in sub.dual])  # max of z_k = G_k x over the box
-    assert np.allclose(subspace.half_widths(sub, scale, cap=np.inf), biggest, rtol=1e-7)
-    capped = subspace.half_widths(sub, scale, cap=1.0)
-    assert np.all(capped <= biggest + 1e-15) and np.allclose(capped, np.minimum(biggest, scale * sub.scale))
+    assert np.allclose(subspace.half_widths(sub, scale, least=np.inf), biggest, rtol=1e-7)
+    half = subspace.half_widths(sub, scale)  # no wider than a uniform gene of the projection's variance
+    assert np.all(half <= biggest + 1e-15) and np.allclose(half, np.minimum(biggest, scale * sub.scale))
+    G = sub.dual / sub.scale[:, None]  # the projection in expected errors: a uniform box's has variance scale^2 / 3
+    assert np.allclose(np.sum((G * p[None] * scale) ** 2, axis=1) / 3, (scale**2) / 3)
+    assert np.allclose(subspace.half_widths(sub, 1.0), sub.scale * np.minimum(biggest / scale / sub.scale, np.sqrt(3)))
 
 
 def test_a_restricted_layout_maps_genomes_both_ways(rng):
@@ -274,3 +277,16 @@ def test_the_genomes_floor(choice):
         assert restricted is problem and np.isclose(own, full, rtol=1e-9)
     else:
         assert restricted.layout.size == setup.subspace.rank < 30 and full * (1 - 1e-9) <= own < 1.02 * full
+
+
+def test_the_instruments_deviations_are_the_noise_when_the_residual_agrees_with_them():
+    _, sim, _, prior = tracker_problem(3)
+    c = sim.calibration
+    for stated, source in ((5e-5, "instrument"), (5e-6, "residual")):
+        data = c.__class__(c.q, c.p, std=np.full((c.M, 3), stated))
+        _, _, problem, _ = tracker_problem(3, data=data)
+        x, _, _, rank = identify.first_fit(problem, prior)
+        nz = identify.noise(problem, problem.residual(x)[:-6], rank)
+        assert nz.source.startswith(source) and abs(nz.chi2_dof / (5e-5 / stated) ** 2 - 1) < 0.15
+        expected = stated if source == "instrument" else nz.sigma["position"]
+        assert np.allclose(nz.row_sigma, expected)

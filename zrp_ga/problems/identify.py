@@ -43,6 +43,7 @@ OUTLIER_ALPHA = 0.01  # chance of naming any point of a clean data set
 MAD = 1.4826  # median absolute deviation -> standard deviation, normal noise
 ROUND_OFF_M = 1e-9  # a point off by less than this is never an outlier (noise-free data: the residual is round-off)
 LOSS_SCALE = 3.0  # default problem.loss_scale, in robust noise
+CONSISTENT = 0.01  # the instrument's deviations describe a residual whose chi^2 is below its 1 - this quantile
 ROBUST_ROUNDS = 3  # robust fits at most, each with the scale from the last one's residual
 
 
@@ -145,9 +146,9 @@ def first_fit(problem: CalibrationProblem, prior: Array) -> tuple[Array, float, 
 def noise(problem: CalibrationProblem, residual: Array, rank: int) -> Noise:
     """The noise of the pose rows (module docstring, step 2) from the ``residual`` (pose rows)
     of a fit with ``rank`` parameters. With the instrument's standard deviations, their
-    position rows' ``chi^2 / dof`` is recorded and, when above 1, scales them (the fit is not
-    consistent with them: ``C = s^2 (J^T W J)^-1`` with s^2 the residual variance per degree of
-    freedom in their units)."""
+    position rows' ``chi^2 / dof`` is recorded, and they are the noise when the residual is
+    consistent with them (chi^2 below its 99% quantile); otherwise the residual's own (the
+    model, not the instrument, limits the fit: on the UR10 data chi^2/dof is in the hundreds)."""
     groups, m = row_groups(problem), residual.size
     dof = m - rank
     sigma, robust = {}, {}
@@ -163,12 +164,18 @@ def noise(problem: CalibrationProblem, residual: Array, rank: int) -> Noise:
     source, chi2 = ("residual" if sigma else "none"), None
     data = problem.data
     if data.std is not None:
+        from scipy.special import chdtri
+
         w = np.ones_like(data.std) if data.weights is None else data.weights
         stated = (data.std * w).ravel()
         position = residual[groups == "position"]
-        chi2 = float(np.sum((position / stated) ** 2) / (position.size * share)) if dof > 0 else None
-        row[groups == "position"] = stated * np.sqrt(max(1.0, chi2 or 1.0))
-        source = "instrument" if (chi2 or 1.0) <= 1.0 else "instrument, scaled by the residual (chi2/dof > 1)"
+        n_dof = position.size * share
+        chi2 = float(np.sum((position / stated) ** 2) / n_dof) if dof > 0 else None
+        if chi2 is None or chi2 <= chdtri(n_dof, CONSISTENT) / n_dof:  # the stated deviations describe the residual
+            row[groups == "position"] = stated
+            source = "instrument"
+        else:
+            source = f"residual (the instrument's deviations do not describe it: chi2/dof = {chi2:.3g})"
     ok = np.isfinite(row).all() and (row > 0).all()
     return Noise(row if ok else None, sigma, robust, source if ok else "none", int(dof), chi2)
 
