@@ -67,7 +67,7 @@ def measured(robot, calibration, settings: dict) -> dict:
     from zrp_ga.run import build, execute
 
     over = ["problem=measured", "algorithm=lm", f"problem.calibration_file={calibration}"]
-    over.append(f"robot={robot}" if isinstance(robot, str) else f"robot=file")
+    over.append(f"robot={robot}" if isinstance(robot, str) else "robot=file")
     if not isinstance(robot, str):
         over.append(f"robot.file={robot}")
     over += [f"problem.{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in settings.items()]
