@@ -7,7 +7,11 @@ with joints 1 and 6 held (at 0.3 and -0.5 rad, as when a cell restricts motion) 
 anywhere; 100 validation poses in the same region and 100 anywhere. Each method calibrates
 through ``zrp_ga.calibrate`` with the measurements in memory (the nominal arm registered to
 them first), unmasked, with the default ``problem.subspace=identified`` and with
-``problem.subspace=full`` (zrp_ga 0.1: every parameter moves).
+``problem.subspace=full`` (zrp_ga 0.1: every parameter moves; ``problem.if_worse=keep`` so that
+the table shows the model the optimiser found: by default a model worse than nominal on the
+validation poses is replaced by the nominal arm). The GA without the pseudo-inverse step is the
+pure GA of experiments/peers.py (blend crossover, polynomial mutation, mu = lambda = 50) for 400
+generations.
 
     python experiments/held_joints.py [--seeds 3 7 11] [--out experiments/results/held_joints.md]
 
@@ -34,8 +38,9 @@ from zrp_ga.model.robot import ZRPRobot
 
 OUT = Path(__file__).parent / "results" / "held_joints.md"
 NOISE_M = 2e-5
-METHODS = {"LM": ("lm", {}), "GA + pseudo-inverse step": ("ga", {}),
-           "GA, no step": ("ga", {"refine": "none", "population": {"mu": 50, "lambda_": 50, "generations": 400}}),
+PURE_GA = {"refine": "none", "crossover": "blend", "mutation": "polynomial", "inversion": "none", "rotation": "none",
+           "population": {"mu": 50, "lambda_": 50, "generations": 400}}  # fmt: skip
+METHODS = {"LM": ("lm", {}), "GA + pseudo-inverse step": ("ga", {}), "GA, no step": ("ga", PURE_GA),
            "CMA-ES": ("cmaes", {"population": {"generations": 400}})}  # fmt: skip
 
 
@@ -64,7 +69,9 @@ def data(robot: ZRPRobot, seed: int):
 
 
 def run(robot, cal, val, algorithm: str, settings: dict, subspace: str, seed: int) -> dict:
-    problem = {**settings.get("problem", {}), "subspace": subspace}
+    """One calibration; with ``subspace=full`` the optimiser's model is kept even when worse than
+    nominal (``if_worse=keep``), to show what it found (the default would return the nominal arm)."""
+    problem = {**settings.get("problem", {}), "subspace": subspace, **({"if_worse": "keep"} if subspace == "full" else {})}
     c = zrp_ga.calibrate(robot, cal, validation=val, algorithm=algorithm, seed=seed, **{**settings, "problem": problem})
     return c.summary
 
@@ -99,7 +106,8 @@ def write(args, rows, ok: bool) -> None:
              f"Command: `python experiments/held_joints.py --seeds {' '.join(map(str, args.seeds))}` (module docstring: a made-up "
              "6R arm from a DH table, positions only, 0.02 mm noise, 60 calibration poses with joints 1 and 6 held, 100 "
              "validation poses in that region and 100 anywhere). Each run is `zrp_ga.calibrate(arm, data, validation=..., "
-             "algorithm=..., problem={'subspace': ...})`, unmasked. The noise alone gives an RMS position error of "
+             "algorithm=..., problem={'subspace': ...})`, unmasked (`full` with `if_worse: keep`: the optimiser's model, "
+             "which the default would replace by the nominal arm where worse). The noise alone gives an RMS position error of "
              f"{np.sqrt(3) * NOISE_M * 1e3:.4f} mm. Wall time on a machine running other jobs.", "",
              "| seed | method | problem.subspace | genes | evaluations | same region: nominal, mm | same region: calibrated, mm | "
              "anywhere: nominal, mm | anywhere: calibrated, mm | anywhere: calibrated / nominal | wall s (two runs) |",

@@ -27,13 +27,23 @@ SUBSPACE_MOVED_RAD = 0.05  # the identified directions at the result this far fr
 class Assessment:
     """The entries for ``summary.json`` (``identified``, ``uncertainty``, ``coverage``,
     ``outliers``), the warnings, the :class:`Uncertainty` and :class:`Coverage` (their files),
-    and whether the model is predicted to be worse than nominal over its own coverage."""
+    and whether the model is predicted to be worse than nominal over its own coverage (the
+    warning's words, :meth:`worse_note`)."""
 
     entries: dict[str, Any]
     warnings: list[str]
     uncertainty: Uncertainty | None
     coverage: Coverage
     predicted_worse: bool
+
+    def worse_note(self, then: str = "") -> list[str]:
+        """The warning that the model is predicted worse than nominal (none when it is not),
+        ending with ``then`` (what is returned instead)."""
+        if not self.predicted_worse:
+            return []
+        p = self.entries["uncertainty"]["predicted_model_rms_mm"]
+        return [f"the calibrated model is predicted to be worse than the nominal one over its own coverage "
+                f"({p['calibrated']:.4g} mm > {p['nominal']:.4g} mm RMS at the calibration poses){then}"]  # fmt: skip
 
 
 def assess(task: Task, x: Array, val_rms_m: float) -> Assessment:
@@ -60,10 +70,6 @@ def assess(task: Task, x: Array, val_rms_m: float) -> Assessment:
     if unc is not None:
         u.update(_uncertainty_entries(task, x, unc, val_rms_m))
         worse = bool(u["predicted_model_rms_mm"]["calibrated"] > u["predicted_model_rms_mm"]["nominal"])
-        if worse:
-            notes.append(f"the calibrated model is predicted to be worse than the nominal one over its own coverage "
-                         f"({u['predicted_model_rms_mm']['calibrated']:.4g} mm > {u['predicted_model_rms_mm']['nominal']:.4g} mm RMS "
-                         "at the calibration poses)")  # fmt: skip
     else:
         u["why"] = "the data leave no residual degrees of freedom to estimate the noise"
     out["uncertainty"] = u
@@ -96,16 +102,24 @@ def identified(task: Task, x: Array) -> dict[str, Any]:
 
 
 def _at_result(task: Task, x: Array) -> dict[str, Any]:
-    """The identified directions computed at the result ``x`` (the refreshed rule): their number
-    and the largest principal angle (rad) to the genome's."""
+    """Rule 1 (the directions the poses see at all) applied again at the result ``x`` and at
+    the first fit's point, where the genome was chosen: their numbers and the largest principal
+    angle (rad) between them. (Directions near the noise threshold, rule 2, come and go with
+    any refit; these do not unless the fit moved the arm where other combinations are seen.)"""
     setup = task.setup
     base, n = setup.problem, task.problem.nominal.n
-    J = identify.plain(base, "jacobian", setup.layout.restrict(task.problem.layout.expand(x)))
-    try:
-        now = subspace.identify(J[:-n], J[-n:], setup.prior, setup.noise.row_sigma, setup.subspace.max_se)
-    except ValueError:
-        return {"rank": 0, "angle_rad": float(np.pi / 2)}
-    return {"rank": now.rank, "angle_rad": subspace.principal_angle(now.basis, setup.subspace.basis)}
+
+    def seen(at: Array) -> subspace.Subspace | None:
+        J = identify.plain(base, "jacobian", at)
+        try:
+            return subspace.identify(J[:-n], J[-n:], setup.prior, None)
+        except ValueError:
+            return None
+
+    now, then = seen(setup.layout.restrict(task.problem.layout.expand(x))), seen(setup.x)
+    if now is None or then is None:
+        return {"rank": 0 if now is None else now.rank, "first_fit_rank": 0 if then is None else then.rank, "angle_rad": float(np.pi / 2)}
+    return {"rank": now.rank, "first_fit_rank": then.rank, "angle_rad": subspace.principal_angle(now.basis, then.basis)}
 
 
 def outliers(task: Task) -> dict[str, Any]:
@@ -157,7 +171,7 @@ def _outlier_notes(o: dict[str, Any]) -> list[str]:
 
 def _moved_note(entry: dict[str, Any]) -> list[str]:
     now = entry.get("at_result")
-    if not now or (now["rank"] == entry["rank"] and now["angle_rad"] <= SUBSPACE_MOVED_RAD):
+    if not now or (now["rank"] == now["first_fit_rank"] and now["angle_rad"] <= SUBSPACE_MOVED_RAD):
         return []
-    return [f"at the result the data identify {now['rank']} combinations (the genome has {entry['rank']}; largest angle "
-            f"{now['angle_rad']:.3g} rad): the fit moved the arm where other combinations are seen"]  # fmt: skip
+    return [f"at the result the poses see {now['rank']} combinations ({now['first_fit_rank']} where the genome was chosen; "
+            f"largest angle {now['angle_rad']:.3g} rad): the fit moved the arm where other combinations are seen"]  # fmt: skip

@@ -206,36 +206,24 @@ def outliers(problem: CalibrationProblem, residual: Array, nz: Noise) -> list[di
 def prepare(problem: CalibrationProblem, prior: Array, search_scale: float, c: ProblemConf) -> tuple[CalibrationProblem, Setup]:
     """``problem`` as the optimisers see it and what its set-up found (module docstring)."""
     layout, n = problem.layout, problem.nominal.n
-    x, cost, nevals, rank0 = first_fit(problem, prior)
-    nz = noise(problem, plain(problem, "residual", x)[:-n], rank0)
+    fit = _fit(problem, prior)
     scale = None
     if c.loss is not Loss.linear:
-        fields = _fields(problem)
-        for _ in range(ROBUST_ROUNDS if c.loss_scale is None else 1):  # the scale from the robust fit's own residual
-            robust_sigma = max(nz.robust.values(), default=0.0)
-            new = c.loss_scale or (LOSS_SCALE * robust_sigma if robust_sigma > 0 else None)
-            if new is None:
-                raise ValueError("problem.loss_scale: the data leave no degrees of freedom to estimate the noise; state it (m)")
-            if scale is not None and abs(new / scale - 1) < 0.1:
-                break
-            scale = float(new)
-            problem = RobustProblem(**fields, loss=c.loss.value, loss_scale=scale)
-            x, cost, nevals, rank0 = first_fit(problem, prior)
-            nz = noise(problem, plain(problem, "residual", x)[:-n], rank0)
-    found = outliers(problem, plain(problem, "residual", x)[:-n], nz)
+        problem, fit, scale = _robust(problem, prior, fit, c)
+    found = outliers(problem, plain(problem, "residual", fit[0])[:-n], fit[4])
     change: dict[str, Any] = {}
-    if found and c.outliers is Outliers.drop:
+    dropped = bool(found and c.outliers is Outliers.drop)
+    if dropped:
         keep = np.ones(problem.data.M, dtype=bool)
         keep[[o["row"] for o in found]] = False
-        before_x, before = x, problem
+        before, before_x = problem, fit[0]
         problem = dataclasses.replace(problem, data=problem.data.subset(keep))
-        x, cost, nevals, rank0 = first_fit(problem, prior)
-        nz = noise(problem, plain(problem, "residual", x)[:-n], rank0)
-        change = _change(before, before_x, problem, x, keep)
+        fit = _fit(problem, prior)
+        change = _change(before, before_x, problem, fit[0], keep)
+    x, cost, nevals, rank0, nz = fit
     if isinstance(problem, RobustProblem):  # the covariance and the rule take the robust noise
         nz = dataclasses.replace(nz, row_sigma=_robust_rows(problem, nz), source=nz.source if nz.source == "instrument" else "robust residual")
-    setup = Setup(layout, prior, None, rank0, x, cost, nevals, nz, found, bool(found and c.outliers is Outliers.drop), change, scale,
-                  problem)  # fmt: skip
+    setup = Setup(layout, prior, None, rank0, x, cost, nevals, nz, found, dropped, change, scale, problem)
     if c.subspace is SubspaceChoice.full:
         return problem, setup
     J = plain(problem, "jacobian", x)
@@ -243,6 +231,29 @@ def prepare(problem: CalibrationProblem, prior: Array, search_scale: float, c: P
     half = sub.half_widths(setup.subspace, search_scale)
     restricted = sub.restricted(layout, setup.subspace)
     return dataclasses.replace(problem, layout=restricted, lower=-half, upper=half, unit_weight=0.0), setup
+
+
+def _fit(problem: CalibrationProblem, prior: Array) -> tuple[Array, float, int, int, Noise]:
+    """:func:`first_fit` and the :func:`noise` of its residual."""
+    x, cost, nevals, rank = first_fit(problem, prior)
+    return x, cost, nevals, rank, noise(problem, plain(problem, "residual", x)[:-problem.nominal.n], rank)
+
+
+def _robust(problem: CalibrationProblem, prior: Array, fit: tuple, c: ProblemConf) -> tuple[RobustProblem, tuple, float]:
+    """The robust problem (module docstring, step 4), its first fit and its loss scale: the
+    stated one, or 3 x the robust noise of the last fit until it changes by less than 10%."""
+    fields, scale = _fields(problem), None
+    for _ in range(ROBUST_ROUNDS if c.loss_scale is None else 1):
+        robust_sigma = max(fit[4].robust.values(), default=0.0)
+        new = c.loss_scale or (LOSS_SCALE * robust_sigma if robust_sigma > 0 else None)
+        if new is None:
+            raise ValueError("problem.loss_scale: the data leave no degrees of freedom to estimate the noise; state it (m)")
+        if scale is not None and abs(new / scale - 1) < 0.1:
+            break
+        scale = float(new)
+        problem = RobustProblem(**fields, loss=c.loss.value, loss_scale=scale)
+        fit = _fit(problem, prior)
+    return problem, fit, scale
 
 
 def _robust_rows(problem: CalibrationProblem, nz: Noise) -> Array | None:

@@ -199,7 +199,8 @@ def judged(task: Task, result: Result) -> tuple[dict, np.ndarray]:
         "validation_rms_mm": val_rms,
         "validation_max_mm": {"nominal": float(before[1][0]) * 1e3, "calibrated": float(after[1][0]) * 1e3},
         "param_err": {"nominal": float(judge.param_error(zero)[0]), "calibrated": float(judge.param_error(x)[0])},
-        "warnings": warnings(task, result, nominal_cost, {**val_rms, "found": float(at_found[0][0]) * 1e3}, returned, found, a.warnings),
+        "warnings": warnings(task, result, nominal_cost, {**val_rms, "found": float(at_found[0][0]) * 1e3}, returned, found,
+                             a.warnings + a.worse_note("; the nominal arm is returned instead" if returned == "nominal" else "")),
         "best_genome": dict(zip(p.names, x.tolist())),
         **a.entries,
     }, x
