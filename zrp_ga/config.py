@@ -218,7 +218,7 @@ class ProblemConf:
     subspace: Subspace = Subspace.identified  # what the fit may move: the identified combinations, or every free parameter
     max_se: float = 0.5  # identified: a combination's standard error at most this many expected errors (zrp_ga.model.subspace)
     loss: Loss = Loss.linear  # soft_l1 or huber: a robust fit
-    loss_scale: Optional[float] = None  # m, where the robust loss turns linear (null: 3 x the noise)
+    loss_scale: Optional[float] = None  # m, where the robust loss turns linear (null: 1.345 x the noise, Huber's)
     outliers: Outliers = Outliers.report  # points far beyond the noise: named, or dropped and the fit repeated
     if_worse: Optional[IfWorse] = None  # a model worse than nominal: nominal or keep (null: measured nominal, simulated keep)
 
