@@ -37,6 +37,12 @@ WARN = "tests/test_warning_paths.py"
 MODEL = ["tests/test_so3.py", "tests/test_kinematics.py"]
 UNITS = ["tests/test_measurement_files.py", "tests/test_measurement_units.py"]
 REPORT_STATS = ["tests/test_report_stats.py", "tests/test_report.py"]
+SHAPES = "tests/test_operators_shapes.py"
+KERNELS = "tests/test_kernels.py"
+SURVIVAL = "tests/test_survival.py"
+COMP_FRAMES = "tests/test_compensation_frames.py"
+COMP_TABLES = "tests/test_compensation_tables.py"
+COMP_INPUTS = "tests/test_compensation_inputs.py"
 
 PLANTS: list[dict] = [
     # --- operators: the distributions ---------------------------------------------------------
@@ -80,6 +86,42 @@ PLANTS: list[dict] = [
          old='pick = np.searchsorted(np.cumsum(sizes), rng.random(N) * sizes.sum(), side="right")',
          new="pick = rng.integers(0, len(sizes), N)", tests=[OPS],
          what="block moves: blocks chosen alike instead of by size"),
+    # --- operators and kernels: every genome size from one gene (issue 27) ---------------------
+    dict(name="segments-one-gene-pair", file="zrp_ga/operators/base.py",
+         old="    pair = span >= 2\n", new="    pair = span >= 1\n", tests=[SHAPES],
+         what="segments: a pair of loci drawn in a span of one gene (a one-gene genome or block inverted or rotated past its end)"),
+    dict(name="one-point-one-gene", file="zrp_ga/operators/crossover.py",
+         old="    if K < 2:\n        return ind1, ind2\n", new="", tests=[SHAPES],
+         what="one-point crossover of one-gene genomes draws a cut point from an empty range"),
+    dict(name="two-point-two-genes", file="zrp_ga/operators/crossover.py",
+         old="    if K == 2:\n        lo, hi = np.ones(N, dtype=np.intp), np.full(N, 2)\n", new="", tests=[SHAPES],
+         what="two-point crossover of two-gene genomes exchanges nothing"),
+    dict(name="block-none-usable", file="zrp_ga/operators/base.py",
+         old="    if not len(usable):\n        return np.zeros(N, dtype=np.intp), np.zeros(N, dtype=np.intp)\n", new="",
+         tests=[SHAPES], what="block moves when no block has two genes (a genome of one-gene blocks)"),
+    dict(name="reverse-mirror-off-by-one", file="zrp_ga/operators/base.py",
+         old="np.asarray(i)[:, None] + np.asarray(j)[:, None] - k, k)", new="np.asarray(i)[:, None] + np.asarray(j)[:, None] + 1 - k, k)",
+         tests=[SHAPES], what="inversion: each locus takes the gene one past its mirror (reads past the segment)"),
+    dict(name="rotate-shift-sign", file="zrp_ga/operators/base.py",
+         old="i + (k - i - np.asarray(shift)[:, None]) % length, k)", new="i + (k - i - np.asarray(shift)[:, None] - 1) % length, k)",
+         tests=[SHAPES], what="rotation: shifted one place more than drawn (a length-two segment never moves)"),
+    dict(name="kernel-layout-no-joint", file="zrp_ga/model/kinematics.py",
+         old="    if U.ndim != 3 or n < 1:\n", new="    if U.ndim != 3:\n", tests=[KERNELS],
+         what="cost kernels: an arm of no joint passed to the kernels (the matrix kernel reads joint 1)"),
+    dict(name="jacobian-axes-unchecked", file="zrp_ga/model/error_model.py",
+         old="    if n < 1 or u0.shape != (n, 3) or b0.shape != (n + 1, 3) or prism.shape != (n,):\n",
+         new="    if n < 1 or b0.shape != (n + 1, 3) or prism.shape != (n,):\n", tests=[KERNELS],
+         what="Jacobian kernel: axes of another arm passed unchecked (reads past u0)"),
+    dict(name="numpy-twin-transposed", file="zrp_ga/model/_numpy_kernels.py",
+         old="X = np.stack([ci * x + si * (uy * z - uz * y) + d * ux,", new="X = np.stack([ci * x - si * (uy * z - uz * y) + d * ux,",
+         tests=[KERNELS], what="the numpy twin of the kernels: one component of each rotation with -sin q"),
+    # --- survival (issue 27) ----------------------------------------------------------------------
+    dict(name="elite-ranked-by-offspring", file="zrp_ga/algorithms/ga.py",
+         old="rank(Pc)[:, :elite]", new="rank(Qc)[:, :elite]", tests=[SURVIVAL],
+         what="generational survival: the elite parents picked by the offspring's ranking"),
+    dict(name="short-generation-keeps-strategy", file="zrp_ga/algorithms/ga.py",
+         old="strategy = ga.strategy if lam >= mu else Strategy.mu_plus_lambda", new="strategy = ga.strategy",
+         tests=[SURVIVAL], what="a generation cut short by max_evals (fewer children than mu) survives by its strategy: the population shrinks"),
     # --- registration ---------------------------------------------------------------------------
     dict(name="registration-rms-is-mean", file="zrp_ga/model/registration.py",
          old="return float(np.sqrt(np.mean(self.errors**2)))", new="return float(np.mean(self.errors))", tests=[REG],
@@ -110,7 +152,7 @@ PLANTS: list[dict] = [
     dict(name="reference-chain-transposed", file="zrp_ga/model/kinematics.py",
          old="R = R @ so3.rodrigues(q[i], robot.u0[i])", new="R = R @ so3.rodrigues(q[i], robot.u0[i]).T",
          tests=MODEL, what="forward_reference: each joint's rotation transposed"),
-    dict(name="forward-kernel-transposed", file="zrp_ga/model/kinematics.py",
+    dict(name="forward-kernel-transposed", file="zrp_ga/model/_kernels.py",
          old="ci, si = c[i], s[i]", new="ci, si = c[i], -s[i]",
          tests=MODEL, what="the compiled forward kinematics: each joint's rotation transposed (R(-q))"),
     dict(name="rodrigues-kernel-transposed", file="zrp_ga/model/_kernels.py",
@@ -160,6 +202,52 @@ PLANTS: list[dict] = [
     dict(name="nemenyi-p-no-sqrt2", file="zrp_ga/report/stats.py",
          old="q = math.sqrt(2) * abs(mean[a] - mean[b]) / se", new="q = abs(mean[a] - mean[b]) / se",
          tests=REPORT_STATS, what="Nemenyi: pairwise p-values without the factor sqrt 2"),
+    # --- compensation (zrp_ga.compensation): frames, sizes, units, setups ---------------------------
+    dict(name="comp-orientation-frame", file="zrp_ga/compensation/frames.py",
+         old="return p @ T[:3, :3].T + T[:3, 3], None if R is None else T[:3, :3] @ R",
+         new="return p @ T[:3, :3].T + T[:3, 3], R", tests=[COMP_FRAMES],
+         what="compensation: orientation targets in the tracker's frame (or a work object) not turned into the base frame"),
+    dict(name="comp-prismatic-size", file="zrp_ga/compensation/result.py",
+         old='out["dq_mm"] = dq[:, pri].max(axis=1) * 1e3', new='out["dq_mm"] = np.degrees(dq[:, pri].max(axis=1))',
+         tests=[COMP_TABLES], what="compensation: a prismatic joint's correction reported as if it were an angle"),
+    dict(name="comp-seed-units", file="zrp_ga/compensation/compensate.py",
+         old="return q * np.where(robot.prismatic, LENGTH[pr.length_unit], ANGLE[unit])", new="return q",
+         tests=[COMP_TABLES], what="compensation: the first seed read in radians whatever the program's joint unit"),
+    dict(name="comp-length-unit", file="zrp_ga/compensation/program.py",
+         old="p = None if p_file is None else p_file * LENGTH[length]", new="p = p_file",
+         tests=[COMP_TABLES], what="compensation: a program's positions left in its length unit (mm read as m)"),
+    dict(name="comp-angle-unit-auto", file="zrp_ga/compensation/program.py",
+         old='return "deg" if beyond.any() or (joint_unit == "deg" and cols.joints is not None) else "rad"', new='return "rad"',
+         tests=[COMP_TABLES], what="compensation: orientations in degrees read as radians"),
+    dict(name="comp-quaternion-order", file="zrp_ga/compensation/orientation.py",
+         old="return Rotation.from_quat(values[:, [1, 2, 3, 0]]).as_matrix()", new="return Rotation.from_quat(values).as_matrix()",
+         tests=[COMP_TABLES], what="compensation: a quaternion's q1..q4 read as x, y, z, w instead of ABB's w, x, y, z"),
+    dict(name="comp-kuka-names", file="zrp_ga/compensation/orientation.py",
+         old='NAMED = {"ZYX": ("A", "B", "C")', new='NAMED = {"ZYX": ("C", "B", "A")',
+         tests=[COMP_TABLES], what="compensation: KUKA's A and C swapped"),
+    dict(name="comp-wrist-sign", file="zrp_ga/compensation/configuration.py",
+         old="np.dot(u[3], np.cross(u[4], u[5]))", new="np.dot(u[3], np.cross(u[3], u[5]))",
+         tests=[COMP_TABLES], what="compensation: the wrist's branch sign from the wrong axes (always 0)"),
+    dict(name="comp-base-foot", file="zrp_ga/compensation/frames.py",
+         old="origin = axis1.point + s * z", new="origin = axis1.point",
+         tests=[COMP_FRAMES], what="base frame by convention: the origin not at the common normal's foot (the first link's error kept)"),
+    dict(name="comp-circle-sense", file="zrp_ga/compensation/frames.py",
+         old="direction = normal if np.sum(turns) > 0 else -normal", new="direction = normal",
+         tests=[COMP_FRAMES], what="circles: an axis's sense not taken from the way the joint turned"),
+    dict(name="comp-work-object-z", file="zrp_ga/compensation/frames.py",
+         old="z = np.cross(x, oy)", new="z = np.cross(oy, x)", tests=[COMP_FRAMES],
+         what="work object: z = (Y - O) x x, the frame turned half a turn about x"),
+    dict(name="comp-base-default", file="zrp_ga/compensation/setups.py",
+         old='if setup == "calibration" or (setup == "auto" and arms.base is None):', new='if setup in ("calibration", "auto"):',
+         tests=[COMP_FRAMES], what="compensation: a measured run's base frame left the registration's by default"),
+    dict(name="comp-work-object-size", file="zrp_ga/compensation/setups.py",
+         old="k = float(np.sqrt(1.0 + 2.0 * (reach_from_origin_m / points_apart_m) ** 2))",
+         new="k = float(1.0 + 2.0 * reach_from_origin_m / points_apart_m)", tests=[COMP_FRAMES],
+         what="compensation: the size a work object's point errors leave, stated with the wrong formula"),
+    dict(name="comp-nominal-unchecked", file="zrp_ga/compensation/arms.py",
+         old="    if dp > NOMINAL_SLACK * cp + NOMINAL_FLOOR_M or da > NOMINAL_SLACK * ca + NOMINAL_FLOOR_RAD:",
+         new="    if False:", tests=[COMP_INPUTS],
+         what="compensation: a --nominal arm that is not the run's accepted"),
 ]
 
 
@@ -232,24 +320,40 @@ def main(argv: list[str] | None = None) -> int:
     return 0 if caught == len(rows) else 1
 
 
+def _kept(out: Path, run: set[str]) -> dict[str, str]:
+    """The table rows of ``out`` (by plant name) for plants not run now (``--only``)."""
+    if not out.exists():
+        return {}
+    rows = [ln for ln in out.read_text().splitlines() if ln.startswith("| ") and not ln.startswith("| plant |")]
+    return {ln.split(" | ")[0][2:]: ln for ln in rows if ln.split(" | ")[0][2:] not in run}
+
+
 def write(out: Path, rows: list, argv: list[str] | None) -> None:
-    cmd = " ".join(["python experiments/mutation_check.py", *(argv if argv is not None else sys.argv[1:])])
-    caught = sum(r[1].startswith("caught") for r in rows)
+    """The table of ``rows``; with ``--only``, the other plants' rows of the existing table are kept."""
+    args = argv if argv is not None else sys.argv[1:]
+    cmd = " ".join(["python experiments/mutation_check.py", *args])
+    kept = _kept(out, {p["name"] for p, *_ in rows}) if "--only" in args else {}
+    new = {}
+    for p, result, secs, line in rows:
+        test = line.removeprefix("FAILED ").removeprefix("ERROR ").split(" - ")[0].replace("|", "\\|")
+        tests = ", ".join(Path(t).name for t in p["tests"])
+        new[p["name"]] = f"| {p['name']} | {p['file']} | {p['what']} | {tests} | {result} | {secs:.0f} | {test} |"
+    table = [kept.get(p["name"]) or new.get(p["name"]) for p in PLANTS if p["name"] in kept or p["name"] in new]
+    caught = sum(" | caught" in ln for ln in table)
+    said = (f"the rows of the plants run now from `{cmd}`, the others kept from the table's previous runs" if kept
+            else f"`{cmd}`")  # fmt: skip
     lines = [
         "# Mutation check: planted bugs and the tests that catch them",
         "",
-        f"Command: `{cmd}` (each plant applied alone to a copy of the repository; the named test files run with "
+        f"Command: {said} (each plant applied alone to a copy of the repository; the named test files run with "
         "`python -m pytest -x -q -p no:cacheprovider FILES`).",
         "",
-        f"**{caught} of {len(rows)} plants caught.**",
+        f"**{caught} of {len(table)} plants caught.**",
         "",
         "| plant | file | bug | tests | result | s | first failing test |",
         "| --- | --- | --- | --- | --- | ---: | --- |",
     ]
-    for p, result, secs, line in rows:
-        test = line.removeprefix("FAILED ").removeprefix("ERROR ").split(" - ")[0].replace("|", "\\|")
-        tests = ", ".join(Path(t).name for t in p["tests"])
-        lines.append(f"| {p['name']} | {p['file']} | {p['what']} | {tests} | {result} | {secs:.0f} | {test} |")
+    lines += table
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines) + "\n")
 

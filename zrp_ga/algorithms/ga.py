@@ -20,11 +20,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zrp_ga import operators
-from zrp_ga.algorithms import Algorithm, Array, Result
+from zrp_ga.algorithms import Algorithm, AlgorithmSize, Array, Result, evaluations, genomes_bytes
 from zrp_ga.config import ConfigError, PopulationConf, RefineConf, Repair, SelectionConf, Strategy, VariationConf, section
 from zrp_ga.core.problem import GeneBlocks, LeastSquares, Problem, Repairing, Sampling
 from zrp_ga.operators.base import Streams
 from zrp_ga.operators.repair import repair
+from zrp_ga.problems.size import ProblemSize
 
 UNARY = (("mutate", "mutation"), ("invert", "inversion"), ("rotate", "rotation"))
 
@@ -66,6 +67,13 @@ class GA(Algorithm):
         ]:
             if node is not None:
                 operators.target(node, key)  # the function exists and takes these parameters
+
+    def size(self, problem: ProblemSize) -> AlgorithmSize:
+        """Parents and offspring (``mu + lambda_``) held and evaluated at once; ``mu`` first,
+        then ``lambda_`` a generation."""
+        c = self.pop_conf
+        P = c.mu + c.lambda_
+        return AlgorithmSize(P, evaluations(c.generations, c.max_evals, c.mu, c.lambda_), genomes_bytes(P, problem.genes))
 
     def setup(self, problem: Problem, rng: np.random.Generator) -> None:
         """Bind the operators to the problem's ranges and blocks and register them. The optional
@@ -381,16 +389,18 @@ def _survive(runs: Sequence[GA], off: Array, off_costs: Array, spans: list[slice
         genes, pool, keep = SURVIVE_TOGETHER[strategy](P, Pc, Q, Qc, mu, elite)
         pop = np.take_along_axis(genes, keep[:, :, None], axis=1)
         costs = np.take_along_axis(pool, keep, axis=1)
-        finite = np.where(np.isfinite(costs), costs, np.inf)
-        best = np.argmin(finite, axis=1)  # the first best: the current genome, and the one offered
-        bests = finite[np.arange(len(group)), best].tolist()
+        best = np.argmin(np.where(np.isfinite(costs), costs, np.inf), axis=1)  # the first best: the current genome
+        # the first best of all this generation saw, kept or not (an elite of mu keeps no child): the one offered
+        seen = np.where(np.isfinite(pool), pool, np.inf)
+        top = np.argmin(seen, axis=1)
+        tops = seen[np.arange(len(group)), top].tolist()
         for g, i in enumerate(group):
             ga = runs[i]
             ga.nevals += int(evaluated[i])
             ga.n_nonfinite = int(nonfinite[i])
             ga.pop, ga.costs, ga.gen, ga._best = pop[g], costs[g], ga.gen + 1, int(best[g])
-            if bests[g] < ga.best_cost:
-                ga.best_x, ga.best_cost = np.array(pop[g, best[g]], dtype=float), bests[g]
+            if tops[g] < ga.best_cost:
+                ga.best_x, ga.best_cost = np.array(genes[g, top[g]], dtype=float), tops[g]
             ga._update_stagnation()
             ga.stop_reason = ga._stop_reason()
 

@@ -13,6 +13,7 @@ from zrp_ga.model.layout import Layout
 from zrp_ga.model.metrics import Judge
 from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.problems import Task, half_ranges, identify, masked
+from zrp_ga.problems.size import ProblemSize, calibration
 
 
 def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> Task:
@@ -42,3 +43,12 @@ def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> Task:
     return Task(name, problem, Judge(problem.layout, robot, validation, sim.true_x, projector), robot,
                 info | {"seed": instance_seed}, setup=setup,
                 if_worse=c.if_worse.value if c.if_worse else None)  # fmt: skip
+
+
+def size(robot: ZRPRobot, **settings) -> ProblemSize:
+    """The size of the instance :func:`build` makes of ``settings``, before it is built
+    (:func:`zrp_ga.problems.size.calibration`): the genes of its whole layout (fixed ones
+    included: the Jacobians hold them), ``n_poses`` and ``n_validation`` poses."""
+    c: SimulatedConf = section(SimulatedConf, settings, "problem")
+    genes = Layout(robot.n, base=c.identify_base, hand=c.identify_hand).size
+    return calibration(robot.n, genes, c.n_poses, c.n_validation, 3 if c.position_only else 6)
