@@ -120,8 +120,12 @@ def test_calibration_in_the_instruments_frame_and_the_robot_files_out(tmp_path, 
     data = pd.read_csv(val)
     q, measured = data[[f"q{i}" for i in range(1, 7)]].to_numpy(), data[["x", "y", "z"]].to_numpy() * 1e-3
     poses = pd.read_csv(out / "pose_errors.csv")
-    assert list(poses.columns) == ["set", "line", "nominal_mm", "calibrated_mm"] and len(poses) == 180
+    assert list(poses.columns) == ["set", "line", "nominal_mm", "calibrated_mm", "predicted_mm", "outside", "distance_ratio"]
+    assert len(poses) == 180 and not poses[poses["set"] == "calibration"]["outside"].any()  # the calibration poses cover themselves
     reported = poses[poses["set"] == "validation"]["calibrated_mm"].to_numpy()
+    from zrp_ga.model.uncertainty import predict_error_mm  # the run directory's prediction, per row as the file has it
+
+    np.testing.assert_allclose(poses[poses["set"] == "validation"]["predicted_mm"], predict_error_mm(out, q), rtol=1e-9)
     assert list(poses[poses["set"] == "validation"]["line"]) == list(range(2, 62))  # the file's lines
     # the model in the instrument's frame loads back and predicts as reported
     model = ZRPRobot.from_yaml(out / "calibrated_in_instrument.yaml")

@@ -113,17 +113,22 @@ class Uncertainty:
         out["position_total_m"] = np.hypot(out["position_m"], out["position_unidentified_m"])
         return out
 
-    def predicted_rms_m(self, q: ArrayLike, tool: ArrayLike | int = 0, noise: bool = True) -> float:
-        """Predicted RMS position error (m) of measured points at poses q (M, n): the model's
-        (both parts) plus, with ``noise``, the measurement noise ``3 noise_m^2``. ``tool``: one
-        tool index, or one per pose (a known tool without genes: the first tool's point stands
-        in for it)."""
+    def position_m(self, q: ArrayLike, tool: ArrayLike | int = 0) -> Array:
+        """The predicted 1-sigma position error radius (M,), m, both parts, at poses q (M, n);
+        ``tool``: one tool index, or one per pose (a known tool without genes: the first tool's
+        point stands in for it)."""
         q = np.atleast_2d(q)
         tools = np.broadcast_to(np.asarray(tool), (q.shape[0],))
         tools = np.where(tools < self.layout.n_tools, tools, 0)
         total = np.empty(q.shape[0])
         for t in np.unique(tools):
             total[tools == t] = self.predict(q[tools == t], int(t))["position_total_m"]
+        return total
+
+    def predicted_rms_m(self, q: ArrayLike, tool: ArrayLike | int = 0, noise: bool = True) -> float:
+        """Predicted RMS position error (m) of measured points at poses q (M, n): the model's
+        (:meth:`position_m`) plus, with ``noise``, the measurement noise ``3 noise_m^2``."""
+        total = self.position_m(q, tool)
         return float(np.sqrt(np.mean(total**2) + (3 * self.noise_m**2 if noise else 0.0)))
 
     def to_dict(self) -> dict[str, Any]:

@@ -37,6 +37,7 @@ from zrp_ga.core.errors import warn
 from zrp_ga.io import measurements, records
 from zrp_ga.model import error_model, metrics
 from zrp_ga.model.cost import CalibrationProblem, model_rank
+from zrp_ga.model.coverage import Coverage
 from zrp_ga.model.layout import Layout
 from zrp_ga.model.metrics import Judge
 from zrp_ga.model.poses import Measurements
@@ -113,13 +114,25 @@ class MeasuredTask(Task):
         return tuple(self.info["tools"]) + tuple(self.info.get("known_tools", {}))
 
     def write(self, out: Path, x: np.ndarray) -> None:
+        """The registration, the calibrated arm in the instrument's frame and every pose's
+        position error, nominal and calibrated, with where the pose lies against the
+        calibration poses (``outside``, ``distance_ratio``: :mod:`zrp_ga.model.coverage`) and,
+        for a calibrated arm, its predicted 1-sigma error (``predicted_mm``,
+        :mod:`zrp_ga.model.uncertainty`)."""
         records.write_json(out / "registration.json", self.registration.to_dict())
         self.calibrated_robot(x).to_yaml(out / INSTRUMENT_MODEL)
-        names = self.tool_names
-        rows = [{"set": k, "line": int(line), **({"tool": names[t]} if len(names) > 1 else {}),
-                 "nominal_mm": b * 1e3, "calibrated_mm": a * 1e3}
-                for k, (before, after) in self.errors(x).items()
-                for line, t, b, a in zip(self.sets[k].lines, self.sets[k].tools, before, after)]  # fmt: skip
+        names, rows = self.tool_names, []
+        region = Coverage(self.problem.data.q)
+        unc = identify.uncertainty(self.problem, x, self.setup) if np.any(x) else None
+        for k, (before, after) in self.errors(x).items():
+            m = self.sets[k]
+            where = region.assess(m.q)
+            predicted = None if unc is None else unc.position_m(m.q, m.tools)
+            rows += [{"set": k, "line": int(line), **({"tool": names[t]} if len(names) > 1 else {}),
+                      "nominal_mm": b * 1e3, "calibrated_mm": a * 1e3,
+                      "predicted_mm": float(predicted[j]) * 1e3 if predicted is not None else "",
+                      "outside": bool(where.outside[j]), "distance_ratio": float(where.ratio[j])}
+                     for j, (line, t, b, a) in enumerate(zip(m.lines, m.tools, before, after))]  # fmt: skip
         records.write_csv(out / POSE_ERRORS, rows)
 
 
