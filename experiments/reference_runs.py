@@ -1,6 +1,7 @@
 """Reference runs of every kind, to show that a change of the run machinery changes no result.
 
     python experiments/reference_runs.py OUT            # run them, write OUT/<name>.csv and OUT/<name>.json
+    python experiments/reference_runs.py OUT --legacy   # the same with issue 29's new defaults off (below)
     python experiments/reference_runs.py --compare A B  # the same numbers in A and B?
 
 Each run goes through the command line (``python -m zrp_ga.cli``, as ``zrp-ga``), except
@@ -8,7 +9,9 @@ Each run goes through the command line (``python -m zrp_ga.cli``, as ``zrp-ga``)
 pseudo-inverse step, LM, CMA-ES), measured (the UR10 laser-tracker data), pose selection, and a
 GA run stopped by Ctrl-C after generation 23 then resumed (``zrp-ga resume=DIR``). Written per
 run: ``convergence.csv`` without its timing columns, and the numbers of ``summary.json`` that
-do not depend on timing or versions. ``--compare`` prints every difference and exits 1 if any. :func:`run_differences` compares two
+do not depend on timing or versions. ``--compare`` prints every difference and exits 1 if any. ``--legacy`` adds :data:`LEGACY` (every
+parameter moves, measured orientations left out: what the runs fitted before issue 29), to show
+that nothing else changed. :func:`run_differences` compares two
 run directories in the same terms (experiments/bench_sweep.py compares whole sweeps with it).
 """
 
@@ -52,6 +55,7 @@ callbacks.ConvergenceLog.on_generation = cut
 sys.argv = ["zrp-ga", *sys.argv[1:]]
 runpy.run_module("zrp_ga.cli", run_name="__main__")
 """
+LEGACY = {"all": ["problem.subspace=full"], "measured": ["problem.use_orientation=false"]}
 SUMMARY_KEYS = ["instance", "algorithm", "seed", "final_cost", "optimiser_cost", "returned", "initial_cost",
                 "nominal_cost", "nevals", "stop_reason", "validation_rms_mm", "validation_max_mm", "param_err",
                 "identifiability", "best_genome", "choices"]  # fmt: skip
@@ -72,19 +76,20 @@ def keep(run_dir: Path, out: Path, name: str, stdout: str = "") -> None:
     (out / f"{name}.json").write_text(json.dumps(kept, indent=1, sort_keys=True))
 
 
-def run_all(out: Path, only: list[str] | None) -> None:
+def run_all(out: Path, only: list[str] | None, legacy: bool = False) -> None:
     out.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="zrp_ga_reference_"))
     for name, args in RUNS.items():
         if only and name not in only:
             continue
-        proc = command([*args, f"hydra.run.dir={work / name}"])
+        extra = (LEGACY["all"] + (LEGACY["measured"] if name.startswith("measured") else [])) if legacy else []
+        proc = command([*args, *extra, f"hydra.run.dir={work / name}"])
         if proc.returncode:
             raise SystemExit(f"{name}: {proc.stderr[-2000:]}")
         keep(work / name, out, name, proc.stdout)
         print(name, "done", flush=True)
     if not only or "resumed" in only:
-        cut = command([*RESUMED, f"hydra.run.dir={work / 'resumed'}"], CUT)
+        cut = command([*RESUMED, *(LEGACY["all"] if legacy else []), f"hydra.run.dir={work / 'resumed'}"], CUT)
         assert cut.returncode == 130, cut.stderr
         proc = command([f"resume={work / 'resumed'}", f"hydra.run.dir={work / 'resume_log'}"])
         if proc.returncode:
@@ -94,7 +99,8 @@ def run_all(out: Path, only: list[str] | None) -> None:
     if not only or "api" in only:
         import zrp_ga
 
-        zrp_ga.calibrate("puma560", problem={"n_poses": 10, "n_validation": 10}, population={"generations": 8},
+        zrp_ga.calibrate("puma560", problem={"n_poses": 10, "n_validation": 10, **({"subspace": "full"} if legacy else {})},
+                         population={"generations": 8},
                          refine="none", seed=2, out=work / "api")  # fmt: skip
         keep(work / "api", out, "api")
         print("api done", flush=True)
@@ -148,10 +154,11 @@ def main() -> None:
     parser.add_argument("out", type=Path, nargs="?")
     parser.add_argument("--only", nargs="*")
     parser.add_argument("--compare", nargs=2, type=Path)
+    parser.add_argument("--legacy", action="store_true", help="issue 29's new defaults off (LEGACY)")
     args = parser.parse_args()
     if args.compare:
         sys.exit(compare(*args.compare))
-    run_all(args.out, args.only)
+    run_all(args.out, args.only, args.legacy)
 
 
 if __name__ == "__main__":

@@ -47,7 +47,8 @@ def _csv(path, q, p):
 
 def _numbers(cal):
     s = cal.summary
-    return np.array([s["best_genome"][k] for k in cal.task.problem.names] + list(s["validation_rms_mm"].values()))
+    # the parameters the genome stands for (the identified genome's coordinates depend on its basis)
+    return np.array(list(cal.task.problem.layout.expand(cal.x)) + list(s["validation_rms_mm"].values()))
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +85,9 @@ def test_in_memory_data_calibrate_as_the_same_file(from_file, make):
 def test_mm_and_degrees_are_detected_and_converted(from_file, make):
     cal = zrp_ga.calibrate(ARM, make(np.degrees(Q), 1e3 * P), validation=make(np.degrees(QV), 1e3 * PV), algorithm="lm")
     assert cal.task.info["units"] == {"length": "mm", "joint_angle": "deg"}
-    np.testing.assert_allclose(_numbers(cal), from_file, rtol=1e-6, atol=1e-9)
+    # converted numbers differ from the file's in the last bits, which move the registration by 1e-11 m and the
+    # weakly identified combinations (standard errors near problem.max_se) by up to 0.03 um: the same arm
+    np.testing.assert_allclose(_numbers(cal), from_file, rtol=1e-6, atol=1e-7)
 
 
 def test_stated_units_are_used():

@@ -45,7 +45,8 @@ def test_default_run_writes_every_file(tmp_path):
     assert summary["seed"] == 0 and summary["choices"] == {} and summary["config"]["crossover"]["op"]["_target_"].endswith("two_point")
     assert summary["identifiability"]["rank"] == 12  # one pose: 6 pose rows + 6 unit rows
     assert summary["robot"] == {"name": "puma560", "joints": 6, "joint_types": "RRRRRR"}
-    assert summary["instance"] == "puma560-1pose-linear-seed0" and summary["warnings"] == []
+    assert summary["instance"] == "puma560-1pose-linear-seed0" and summary["coverage"]["validation_is_extrapolation"]
+    assert len(summary["warnings"]) == 1 and "the validation is extrapolation" in summary["warnings"][0]  # one pose covers no region
     assert json.loads((tmp_path / "status.json").read_text()) == {"status": "done"}
 
 
@@ -106,7 +107,7 @@ def test_unknown_operator_fails_at_composition():
 
 def test_one_pose_warns_once_with_one_consistent_rank(tmp_path, caplog):
     execute.run(_cfg("problem.n_validation=5", "population.generations=1"), tmp_path / "a")
-    warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING" and "extrapolation" not in r.getMessage()]
     assert len(warnings) == 1
     assert warnings[0].startswith("the calibration poses identify 12 of the 31 parameter combinations the model can identify (36 parameters)")
     caplog.clear()

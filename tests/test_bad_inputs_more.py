@@ -123,6 +123,9 @@ CASES = [
          "they cannot be in mm (problem.length_unit=m?)", files=(("cal.csv", "\n".join([HEAD, *_points(scale=1)]) + "\n"),)),
     Case("contradictory settings", "data in mm with length_unit=m stated", (*MEASURED, "problem.length_unit=m"),
          "they cannot be in m (problem.length_unit=mm?)", files=(CAL,)),
+    Case("missing setting", "rx, ry, rz in the calibration file without their convention", MEASURED,
+         "cal.csv has orientation columns rx, ry, rz but no convention is stated: set it",
+         files=(("cal.csv", "\n".join([HEAD + ",rx,ry,rz", *(r + ",0.1,0.2,0.3" for r in ROWS)]) + "\n"),)),
     # --- messages that missed the key ---------------------------------------------------------------
     Case("absurd value", "a negative seed", ("seed=-1",), "seed: must be a whole number >= 0, got -1"),
     Case("absurd value", "a negative problem seed", ("problem.seed=-3",), "problem.seed: must be a whole number >= 0"),

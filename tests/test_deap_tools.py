@@ -26,7 +26,7 @@ def test_batched_map_equals_one_evaluation_per_individual(rng):
     one_by_one = np.array(list(map(evaluate, pop)))  # the compiled loop differs in the last bit between P = 1 and 7
     np.testing.assert_allclose(batched, one_by_one, rtol=1e-14)
     assert batched[3, 0] == np.finfo(float).max
-    assert deap_tools.batched_map(problem)(len, pop) == [36] * 7  # other functions: the builtin map
+    assert deap_tools.batched_map(problem)(len, pop) == [problem.lower.size] * 7  # other functions: the builtin map
 
 
 def test_zrp_operators_registered_as_they_are_fail_on_deap_individuals(rng):

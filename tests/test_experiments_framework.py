@@ -46,7 +46,7 @@ def test_every_option_of_every_group_composes_and_builds(group, tmp_path):
         cfg = config.load(over)
         p = build.prepare(cfg, tmp_path / "run")
         p.algorithm.setup(p.task.problem, np.random.default_rng(0))
-        assert hasattr(p.algorithm.toolbox, "evaluate") and p.task.problem.layout.size >= 6 * p.task.robot.n
+        assert hasattr(p.algorithm.toolbox, "evaluate") and p.task.layout.size >= 6 * p.task.robot.n  # the parameters (before the restriction to the identified ones)
 
 
 @pytest.mark.parametrize("preset, target", [("local", "ZrpGaLauncher"), ("zrp_ga", "ZrpGaLauncher"), ("joblib", "Joblib")])

@@ -121,8 +121,12 @@ def test_calibration_in_the_instruments_frame_and_the_robot_files_out(tmp_path, 
     data = pd.read_csv(val)
     q, measured = data[[f"q{i}" for i in range(1, 7)]].to_numpy(), data[["x", "y", "z"]].to_numpy() * 1e-3
     poses = pd.read_csv(out / "pose_errors.csv")
-    assert list(poses.columns) == ["set", "line", "nominal_mm", "calibrated_mm"] and len(poses) == 180
+    assert list(poses.columns) == ["set", "line", "nominal_mm", "calibrated_mm", "predicted_mm", "outside", "distance_ratio"]
+    assert len(poses) == 180 and not poses[poses["set"] == "calibration"]["outside"].any()  # the calibration poses cover themselves
     reported = poses[poses["set"] == "validation"]["calibrated_mm"].to_numpy()
+    from zrp_ga.model.uncertainty import predict_error_mm  # the run directory's prediction, per row as the file has it
+
+    np.testing.assert_allclose(poses[poses["set"] == "validation"]["predicted_mm"], predict_error_mm(out, q), rtol=1e-9)
     assert list(poses[poses["set"] == "validation"]["line"]) == list(range(2, 62))  # the file's lines
     # the model in the instrument's frame loads back and predicts as reported
     model = ZRPRobot.from_yaml(out / "calibrated_in_instrument.yaml")
@@ -198,7 +202,7 @@ def test_several_tools_calibrate_one_arm_and_leave_as_robot_files(tmp_path, rng)
     truth = _true_arm(rng)
     cal, val = _files(tmp_path, rng, truth, n_cal=80, n_val=30, tools=TOOLS)
     s = _run(tmp_path, _over(cal, val, "algorithm=lm"))
-    assert s["problem"]["tools"] == ["A", "B", "C"] and len(s["best_genome"]) == 6 * 6 + 3 + 6
+    assert s["problem"]["tools"] == ["A", "B", "C"] and s["identified"]["parameters"] == 6 * 6 + 3 + 6
     assert s["position_error_mm"]["validation"]["calibrated"]["rms"] < 1.5 * NOISE * np.sqrt(3) * 1e3
     # the tool points' offsets from one another, in the instrument's frame, are the true ones
     frames = yaml.safe_load((tmp_path / "run" / "calibrated_robot_frames.yaml").read_text())
@@ -271,7 +275,7 @@ def test_validation_with_a_known_other_tool_point(tmp_path, rng):
 def test_data_gene_ranges_follow_the_residuals_and_the_axes_levers(tmp_path, rng):
     cal, _ = _files(tmp_path, rng, _true_arm(rng), n_cal=40)
     task = build.prepare(config.load(_over(cal, None, "algorithm=lm")), tmp_path / "r").task
-    p, reg, c = task.problem, task.registration, MeasuredConf(search_scale=5.0)
+    p, reg, c = task.setup.problem, task.registration, MeasuredConf(search_scale=5.0)  # the parameters' ranges
     e = reg.max
     np.testing.assert_allclose(p.upper[p.layout.blocks["b0"]], 5.0 * e)
     np.testing.assert_allclose(p.upper[p.layout.blocks["base"]], 5.0 * e)
@@ -314,8 +318,9 @@ def test_a_result_worse_than_the_nominal_arm_is_not_returned(tmp_path, rng):
 @pytest.mark.parametrize(
     "extra, message",
     [
-        (["problem.use_orientation=true"], "problem.orientation_convention: state the convention"),
-        (["problem.use_weights=true"], "problem.use_weights: "),
+        (["problem.use_orientation=true"], "problem.orientation_convention: .*cal.csv has orientation columns rx, ry, rz but no convention is stated"),
+        ([], "problem.orientation_convention: .* or problem.use_orientation=false to fit positions only"),
+        (["problem.use_weights=true", "problem.use_orientation=false"], "problem.use_weights: "),
         (["problem.orientation_convention=XXZ"], "problem.orientation_convention: 'XXZ' is neither"),
         (["problem.length_unit=km"], "problem.length_unit: must be m, mm or auto"),
         (["problem.known_tools={D:[0,1]}"], "problem.known_tools.D: must be a list of 3 finite numbers"),

@@ -61,8 +61,8 @@ def kinds(tmp_path_factory):
     _run(runs / "paper-lm", "algorithm=lm")
     _run(runs / "paper-cmaes", "algorithm=cmaes", "population.lambda_=10", "population.generations=3")
     _run(runs / "multipose-ga", "problem=multipose", "problem.n_poses=6", "refine=none", *SMALL_GA)
-    _run(runs / "measured-ga", *measured, f"problem.validation_file={val}", *SMALL_GA)
-    _run(runs / "measured-lm-no-validation", *measured, "algorithm=lm", "algorithm.max_evals=30")
+    _run(runs / "measured-ga", *measured, f"problem.validation_file={val}", "problem.if_worse=keep", *SMALL_GA)  # (the nominal arm is the truth)
+    _run(runs / "measured-lm-no-validation", *measured, "algorithm=lm", "algorithm.max_evals=30", "problem.if_worse=keep")
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(GA, "step", _breaking(ValueError("made to fail")))
         with pytest.raises(ValueError):

@@ -100,7 +100,7 @@ def test_a_resumed_run_continues_from_a_changed_population(tmp_path, monkeypatch
     execute.run(cfg, tmp_path / "whole")
     out = _interrupted(cfg, tmp_path / "cut", monkeypatch)
     task = prepare(cfg, None).task
-    truth = np.asarray(task.truth, dtype=float)
+    truth = task.problem.layout.restrict(np.asarray(task.truth, dtype=float))  # the genome nearest to the true arm
     cost = float(task.problem.costs(truth[None])[0])
     state = checkpoint.load(out / directory.CHECKPOINT)
     cut = int(state["gen"])  # the last generation the interrupt's checkpoint holds

@@ -99,15 +99,17 @@ def test_validation_worse_than_nominal_is_warned_with_both_rms(tmp_path):
     q, qv = random_joints(arm, 14, rng), random_joints(arm, 40, rng)  # 14 points: just enough for the model
     cal = Measurements(q, _points(arm, q) + rng.normal(scale=2e-3, size=(14, 3)))  # the nominal arm is the truth
     val = Measurements(qv, _points(arm, qv) + rng.normal(scale=2e-3, size=(40, 3)))
-    s = zrp_ga.calibrate(arm, cal, validation=val, algorithm="lm").summary
-    rms = s["validation_rms_mm"]
-    assert s["final_cost"] < s["nominal_cost"] and rms["calibrated"] > rms["nominal"]  # the noise fitted
+    kept = zrp_ga.calibrate(arm, cal, validation=val, algorithm="lm", problem={"if_worse": "keep"}).summary
+    rms = kept["validation_rms_mm"]
+    assert kept["final_cost"] < kept["nominal_cost"] and rms["calibrated"] > rms["nominal"]  # the noise fitted
     predict, _ = _register(arm, q, cal.p)
     assert rms["nominal"] == pytest.approx(_rms(predict(qv) - val.p) * 1e3, rel=1e-6)
     expected = (f"the calibrated model predicts the validation poses worse than the nominal one "
                 f"(RMS {rms['calibrated']:.4g} mm > {rms['nominal']:.4g} mm)")  # fmt: skip
-    assert expected in s["warnings"]
-    assert s["returned"] == "optimiser"  # fitted better on the calibration data: kept (module docstring)
+    assert expected in kept["warnings"] and kept["returned"] == "optimiser"  # problem.if_worse=keep: kept
+    s = zrp_ga.calibrate(arm, cal, validation=val, algorithm="lm").summary  # measured data: the nominal arm by default
+    assert s["returned"] == "nominal" and s["validation_rms_mm"]["calibrated"] == s["validation_rms_mm"]["nominal"]
+    assert expected + "; the nominal arm is returned instead" in s["warnings"]
 
 
 def _far_off_file(tmp_path):

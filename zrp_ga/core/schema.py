@@ -53,6 +53,27 @@ class Norm(enum.Enum):
     rms = "rms"  # 2-norm / sqrt(rows)
 
 
+class Subspace(enum.Enum):
+    identified = "identified"  # move only the combinations the data identify (zrp_ga.model.subspace)
+    full = "full"  # move every free parameter (zrp_ga 0.1)
+
+
+class Loss(enum.Enum):
+    linear = "linear"  # least squares
+    soft_l1 = "soft_l1"  # scipy.optimize.least_squares' robust losses (zrp_ga.problems.robust)
+    huber = "huber"
+
+
+class Outliers(enum.Enum):
+    report = "report"  # name them (file, line, size)
+    drop = "drop"  # and fit without them
+
+
+class IfWorse(enum.Enum):
+    nominal = "nominal"  # return the nominal arm instead
+    keep = "keep"  # return the calibrated one anyway (with the warning)
+
+
 class Kernel(enum.Enum):
     rodrigues = "rodrigues"  # float64, bit-identical to zrp_ga 0.1
     matrix = "matrix"  # float64, matrix form with fused multiply-adds: 2x faster, last bits differ
@@ -208,8 +229,17 @@ class ProblemConf:
     norm: Norm = Norm.spectral
     orientation_weight: float = 1.0  # m per rad in the residual
     kernel: Kernel = Kernel.rodrigues  # the compiled cost of a population (zrp_ga.model.kinematics.KERNELS)
+    subspace: Subspace = Subspace.identified  # what the fit may move: the identified combinations, or every free parameter
+    max_se: float = 0.5  # identified: a combination's standard error at most this many expected errors (zrp_ga.model.subspace)
+    loss: Loss = Loss.linear  # soft_l1 or huber: a robust fit
+    loss_scale: Optional[float] = None  # m, where the robust loss turns linear (null: 1.345 x the noise, Huber's)
+    outliers: Outliers = Outliers.report  # points far beyond the noise: named, or dropped and the fit repeated
+    if_worse: Optional[IfWorse] = None  # a model worse than nominal: nominal or keep (null: measured nominal, simulated keep)
 
     def check(self, key: str = "problem") -> None:
+        _require(math.isfinite(self.max_se) and self.max_se > 0, f"{key}.max_se", "a number > 0", self.max_se)
+        s = self.loss_scale
+        _require(s is None or (math.isfinite(s) and s > 0), f"{key}.loss_scale", "a length > 0 (m) or null", s)
         for name in ("axis_error", "body_error", "search_scale"):
             value = getattr(self, name)
             _require(math.isfinite(value) and value > 0, f"{key}.{name}", "a number > 0", value)
@@ -266,7 +296,7 @@ class MeasuredConf(ProblemConf):
     length_unit: str = "auto"  # zrp format: m, mm or auto (whichever puts the points within the arm's reach)
     angle_unit: str = "auto"  # rad, deg or auto (degrees when a joint value is beyond any turn)
     orientation_convention: Optional[str] = None  # rx, ry, rz: an Euler sequence (XYZ intrinsic, xyz extrinsic, ...) or rotvec
-    use_orientation: bool = False  # fit measured orientations too (and the hand orientation)
+    use_orientation: Optional[bool] = None  # fit measured orientations (and the hand orientation); null: when the file has them
     use_weights: bool = False  # weight position errors by the rows' standard deviations
     ranges: Ranges = Ranges.data  # gene ranges: data (x search_scale) or fixed (axis_error, body_error x search_scale)
 

@@ -7,7 +7,10 @@ Genomes are parameter errors laid out by :class:`zrp_ga.model.layout.Layout`. Co
 - ``linear`` (the paper): ``|| [dr; dp; 0] - J x ||`` with J the error Jacobian at the nominal
   parameters (Eq. 21-27) and ``[dr; dp]`` the pose errors of the nominal robot;
 - ``nonlinear``: the forward-kinematics residual over all poses plus the unit rows
-  ``(|u0_i + du0_i|^2 - 1) / 2`` (equal to the paper's ``u0_i^T du0_i`` to first order).
+  ``(|u0_i + du0_i|^2 - 1) / 2`` (equal to the paper's ``u0_i^T du0_i`` to first order),
+  times ``unit_weight`` (0 for a genome whose axes only turn, the identified subspace of
+  :mod:`zrp_ga.model.subspace`: there the rows would measure ``|du0_i|^2 / 2``, a bias the
+  data never asked for, since the model turns about the normalised axes anyway).
 
 The forward kinematics turns about the normalised axes: Rodrigues' formula with a stretched
 axis no longer leaves the axis fixed, and least squares then fits noise with points slid metres
@@ -49,6 +52,7 @@ class CalibrationProblem:
     norm: Norm = Norm.spectral
     orientation_weight: float = 1.0
     kernel: Kernel = Kernel.rodrigues  # which compiled cost evaluates a population (float64 unless float32)
+    unit_weight: float = 1.0  # of the unit-length rows (0: a genome whose axes only turn, zrp_ga.model.subspace)
 
     def __post_init__(self) -> None:
         K, n = self.layout.size, self.nominal.n
@@ -70,7 +74,7 @@ class CalibrationProblem:
         pose = self._position_weights
         if not data.position_only:
             pose = np.hstack([np.full((data.M, 3), self.orientation_weight), pose])
-        self._row_weights = np.concatenate([pose.ravel(), np.ones(n)])
+        self._row_weights = np.concatenate([pose.ravel(), np.full(n, float(self.unit_weight))])
         self._groups = self._tool_groups()
         self.J_nominal = self._jacobian(np.zeros(K), exact=False)
         self.y_nominal = self._residual(np.zeros(K))  # [dr; dp; 0] of the nominal robot
@@ -115,7 +119,7 @@ class CalibrationProblem:
                     t = m.for_tool(k)
                     sums = sums + kinematics.residual_sums_unchecked(t.U, t.B, t.H, terms, p, R, w, kernel=self.kernel.value)
                 unit = 0.5 * (m.length2 - 1.0)
-                total = self.orientation_weight**2 * sums[0] + sums[1] + np.einsum("ip,ip->p", unit, unit)
+                total = self.orientation_weight**2 * sums[0] + sums[1] + self.unit_weight**2 * np.einsum("ip,ip->p", unit, unit)
             if self.norm is Norm.rms:
                 total = total / self.n_rows
             return np.sqrt(total)

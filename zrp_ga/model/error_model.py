@@ -291,8 +291,7 @@ def canonical(layout: Layout, nominal: ZRPRobot, x: ArrayLike) -> Array:
     if S.shape[1] and layout.is_masked:  # the combinations of slides within the genome's range (fixed genes alone)
         from scipy.linalg import null_space
 
-        N = layout.matrix
-        S = S @ null_space(S - N @ (N.T @ S))
+        S = S @ null_space(S - layout.expand(layout.restrict(S.T)).T)  # S less its projection onto the genome's range
     if S.shape[1]:
         Q = np.linalg.qr(S)[0]
         full -= Q @ (Q.T @ full)

@@ -23,10 +23,12 @@ one with zeros (the nominal values) at the fixed places, and :meth:`Layout.unpac
 :meth:`Layout.robot` take either. ``full_names`` and :attr:`Layout.unmasked` are the genome
 without a mask (the Jacobian's columns before they are restricted to the free ones).
 
-A linear subspace instead (``basis``: N, full_size x K, orthonormal columns; :func:`dh_mask`
-builds it to hold DH parameters to first order): the genome is z with ``x = N z``;
-:meth:`Layout.expand` computes it, :meth:`Layout.columns` maps a Jacobian (``J N``) and
-:meth:`Layout.restrict` a full genome (``N^T x``); one gene block ``z``.
+A linear subspace instead (``basis``: N, full_size x K; :func:`dh_mask` builds orthonormal
+columns to hold DH parameters to first order, :mod:`zrp_ga.model.subspace` the directions the
+data identify, with ``dual``, a left inverse G, K x full_size, ``G N = I``): the genome is z with
+``x = N z``; :meth:`Layout.expand` computes it, :meth:`Layout.columns` maps a Jacobian (``J N``)
+and :meth:`Layout.restrict` a full genome (``G x``, ``N^T x`` for orthonormal columns); one gene
+block ``z``.
 
 The model turns about the normalised axes ``(u0 + du0) / |u0 + du0|``; the unit-length rows
 of the paper (Eq. 19-20) then keep ``|u0 + du0|`` near one (see :mod:`zrp_ga.model.cost`).
@@ -94,8 +96,9 @@ class Layout:
     """Which parameter errors a genome holds: K = 6n (+3 with ``base``, +3 with ``hand``, +3 per
     tool beyond the first), less the ``fixed`` genes. ``tools``: offsets (m) of tools 2..T from
     tool 1 in the hand frame; ``known_tools``: the same for tools without genes; ``fixed``: names
-    of genes held at their nominal values; ``basis``: N of a genome ``x = N z``, ``dh_fixed``: the
-    DH parameters it holds (module docstring)."""
+    of genes held at their nominal values; ``basis``: N of a genome ``x = N z`` and ``dual`` its
+    left inverse (None: N orthonormal, ``N^T``), ``dh_fixed``: the DH parameters it holds
+    (module docstring)."""
 
     n: int
     base: bool = False
@@ -105,6 +108,7 @@ class Layout:
     fixed: tuple[str, ...] = ()
     basis: Array | None = dataclasses.field(default=None, compare=False, repr=False)
     dh_fixed: tuple[str, ...] = ()
+    dual: Array | None = dataclasses.field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         for name in ("tools", "known_tools"):
@@ -123,8 +127,11 @@ class Layout:
             N = np.array(self.basis, dtype=float)
             if N.ndim != 2 or N.shape[0] != self.full_size or not 1 <= N.shape[1] <= self.full_size:
                 raise ValueError(f"layout.basis: expected a ({self.full_size}, K) matrix with K >= 1, got shape {N.shape}")
-            if not np.allclose(N.T @ N, np.eye(N.shape[1]), atol=1e-9):
-                raise ValueError("layout.basis: the columns are not orthonormal")
+            G = N.T if self.dual is None else np.array(self.dual, dtype=float)
+            if G.shape != N.shape[::-1] or not np.allclose(G @ N, np.eye(N.shape[1]), atol=1e-9):
+                raise ValueError("layout.basis: the columns are not orthonormal (and no left inverse layout.dual is given)")
+            G.setflags(write=False)
+            object.__setattr__(self, "_left", G)  # not the field: a replaced basis gets its own
             if self.fixed and np.abs(N[[self.full_names.index(k) for k in self.fixed]]).max() > 1e-9:
                 raise ValueError("layout.basis: moves a fixed gene")
             N.setflags(write=False)
@@ -138,7 +145,7 @@ class Layout:
     @functools.cached_property
     def unmasked(self) -> Layout:
         """This layout with every gene free (itself when nothing is fixed)."""
-        return dataclasses.replace(self, fixed=(), basis=None, dh_fixed=()) if self.is_masked else self
+        return dataclasses.replace(self, fixed=(), basis=None, dh_fixed=(), dual=None) if self.is_masked else self
 
     @property
     def is_masked(self) -> bool:
@@ -162,11 +169,12 @@ class Layout:
         return J[..., self.free] if self.fixed else J
 
     def restrict(self, X: ArrayLike) -> Array:
-        """Full genomes X (..., full_size) as genomes (..., size): ``N^T x``, the genome nearest to
-        x (the free genes for a plain mask); the inverse of :meth:`expand` on its range."""
+        """Full genomes X (..., full_size) as genomes (..., size): ``G x`` (``N^T x`` for
+        orthonormal columns: the genome nearest to x; the free genes for a plain mask); the
+        inverse of :meth:`expand` on its range."""
         X = np.asarray(X, dtype=float)
         if self.basis is not None:
-            return X @ self.basis
+            return X @ self._left.T
         return X[..., self.free] if self.fixed else X.copy()
 
     @functools.cached_property
@@ -239,8 +247,8 @@ class Layout:
             return X.copy()
         if X.shape[-1] != self.size:
             raise ValueError(f"layout: genomes of {X.shape[-1]} genes, expected {self.size} (or {self.full_size} with the fixed ones)")
-        if self.basis is not None:
-            return X @ self.basis.T
+        if self.basis is not None:  # einsum, not BLAS: each genome's numbers are the same alone or in a population
+            return np.einsum("...k,jk->...j", X, self.basis)
         out = np.zeros(X.shape[:-1] + (self.full_size,))
         out[..., self.free] = X
         return out
@@ -310,9 +318,10 @@ class Layout:
             parts.append((ends - nominal_ends).ravel())
         x = np.concatenate(parts)
         if self.basis is not None:
-            z = x @ self.basis
+            z = self.restrict(x)
             if np.abs(x - self.basis @ z).max() > 1e-9:  # (normalised axes: second order off)
-                raise ValueError(f"layout: the robots differ outside the genome's subspace (fixed DH parameters {', '.join(self.dh_fixed)})")
+                what = f"fixed DH parameters {', '.join(self.dh_fixed)}" if self.dh_fixed else "the combinations the genome holds"
+                raise ValueError(f"layout: the robots differ outside the genome's subspace ({what})")
             return z
         if not self.fixed:
             return x

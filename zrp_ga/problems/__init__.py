@@ -35,8 +35,10 @@ Array = NDArray[np.float64]
 class Task:
     """A calibration problem instance, named, with its judge; ``robot`` is the arm as given
     (before any registration), ``info`` goes into ``summary.json``, ``warnings`` (found while
-    building it) into its warnings. ``nominal_if_worse``: a result that fits the calibration
-    data worse than the nominal arm is replaced by the nominal arm (:mod:`zrp_ga.run.summary`)."""
+    building it) into its warnings. ``nominal_if_worse``: the kind's default for a result worse
+    than the nominal arm (on the calibration or validation data, or predicted over its own
+    coverage): replaced by the nominal arm (:mod:`zrp_ga.run.summary`); ``if_worse`` the
+    setting that overrides it."""
 
     name: str
     problem: CalibrationProblem
@@ -44,11 +46,29 @@ class Task:
     robot: ZRPRobot
     info: dict[str, Any] = dataclasses.field(default_factory=dict)
     warnings: list[str] = dataclasses.field(default_factory=list)
+    setup: Any = None  # what the problem's set-up found (zrp_ga.problems.identify.Setup; None: none)
+    if_worse: str | None = None  # problem.if_worse: nominal or keep (None: the kind's nominal_if_worse)
     nominal_if_worse: ClassVar[bool] = False
+
+    @property
+    def returns_nominal(self) -> bool:
+        """Whether a model worse than the nominal arm is replaced by it (``problem.if_worse``)."""
+        return self.nominal_if_worse if self.if_worse is None else self.if_worse == "nominal"
 
     @property
     def truth(self) -> Array | None:
         return self.judge.truth
+
+    @property
+    def layout(self) -> Layout:
+        """The genome before the restriction to the identified combinations (masked as
+        configured): what the identifiability report covers."""
+        return self.problem.layout if self.setup is None else self.setup.layout
+
+    def identifiability(self):
+        """The identifiability report (:func:`zrp_ga.model.error_model.identifiability`) of the
+        calibration poses at the nominal arm, over :attr:`layout`'s parameters."""
+        return (self.problem if self.setup is None else self.setup.problem).identifiability()
 
     def calibrated_robot(self, x: Array) -> ZRPRobot:
         p = self.problem

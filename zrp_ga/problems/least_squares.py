@@ -5,6 +5,8 @@ evaluation saw. :class:`zrp_ga.algorithms.lm.LM` runs it as an optimiser (a conv
 evaluation); a problem kind that judges its answers by a calibration (the pose-selection
 problem) calls it directly, without reaching up into the algorithms. The choices (scaling,
 tolerances, ``"trf"`` for fewer rows than parameters) are explained in :mod:`zrp_ga.algorithms.lm`.
+A robust problem (:class:`zrp_ga.problems.robust.RobustProblem`) is fitted by ``"trf"`` with
+scipy's ``loss`` and ``f_scale`` on its plain rows (MINPACK's LM takes no loss).
 MINPACK is handed one parameter more than the problem has, with a zero Jacobian column, so that
 the same fit gives the same numbers every time (:func:`_padded` says why).
 """
@@ -61,19 +63,23 @@ def levenberg_marquardt(
     initial = evaluate(x0[None])
     seen(x0, initial)
 
+    loss = getattr(problem, "loss", "linear")  # a robust problem (zrp_ga.problems.robust): scipy's loss on its plain rows
+    rows = problem.residual if loss == "linear" else problem.plain_residual
+
     def residual(x: Array) -> Array:
-        r = problem.residual(x)
+        r = rows(x)
         costs = evaluate(x[None])
         count[0] += 1
         seen(x, costs)
         return r
 
-    method = "lm" if problem.n_rows >= x0.size else "trf"
-    fun, jac, start = residual, lambda x: -problem.jacobian(x), x0
+    method = "lm" if problem.n_rows >= x0.size and loss == "linear" else "trf"
+    fun, jac, start = residual, lambda x: -(problem.jacobian(x) if loss == "linear" else problem.plain_jacobian(x)), x0
     if method == "lm":
         fun, jac, start = _padded(residual, jac, x0.size, problem.n_rows)
+    robust = {} if loss == "linear" else {"loss": loss, "f_scale": problem.loss_scale}
     fit = least_squares(fun, start, jac=jac, method=method, max_nfev=max_evals, x_scale=np.full(start.size, X_SCALE),
-                        ftol=1e-15, xtol=1e-15, gtol=1e-15)  # fmt: skip
+                        ftol=1e-15, xtol=1e-15, gtol=1e-15, **robust)  # fmt: skip
     return Fit(best[0], best[1], count[0], f"{method}: {fit.message}", initial)
 
 

@@ -37,12 +37,13 @@ from zrp_ga.core.schema import Format, MeasuredConf, Ranges, section
 from zrp_ga.io import measurements, records
 from zrp_ga.model import error_model, metrics
 from zrp_ga.model.cost import CalibrationProblem, model_rank
+from zrp_ga.model.coverage import Coverage
 from zrp_ga.model.layout import Layout
 from zrp_ga.model.metrics import Judge
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.registration import Registration, register
 from zrp_ga.model.robot import ZRPRobot
-from zrp_ga.problems import Task, half_ranges, masked
+from zrp_ga.problems import Task, half_ranges, identify, masked
 from zrp_ga.problems.size import ProblemSize, calibration, file_rows
 
 log = logging.getLogger(__name__)
@@ -113,13 +114,25 @@ class MeasuredTask(Task):
         return tuple(self.info["tools"]) + tuple(self.info.get("known_tools", {}))
 
     def write(self, out: Path, x: np.ndarray) -> None:
+        """The registration, the calibrated arm in the instrument's frame and every pose's
+        position error, nominal and calibrated, with where the pose lies against the
+        calibration poses (``outside``, ``distance_ratio``: :mod:`zrp_ga.model.coverage`) and,
+        for a calibrated arm, its predicted 1-sigma error (``predicted_mm``,
+        :mod:`zrp_ga.model.uncertainty`)."""
         records.write_json(out / "registration.json", self.registration.to_dict())
         self.calibrated_robot(x).to_yaml(out / INSTRUMENT_MODEL)
-        names = self.tool_names
-        rows = [{"set": k, "line": int(line), **({"tool": names[t]} if len(names) > 1 else {}),
-                 "nominal_mm": b * 1e3, "calibrated_mm": a * 1e3}
-                for k, (before, after) in self.errors(x).items()
-                for line, t, b, a in zip(self.sets[k].lines, self.sets[k].tools, before, after)]  # fmt: skip
+        names, rows = self.tool_names, []
+        region = Coverage(self.problem.data.q)
+        unc = identify.uncertainty(self.problem, x, self.setup) if np.any(x) else None
+        for k, (before, after) in self.errors(x).items():
+            m = self.sets[k]
+            where = region.assess(m.q)
+            predicted = None if unc is None else unc.position_m(m.q, m.tools)
+            rows += [{"set": k, "line": int(line), **({"tool": names[t]} if len(names) > 1 else {}),
+                      "nominal_mm": b * 1e3, "calibrated_mm": a * 1e3,
+                      "predicted_mm": float(predicted[j]) * 1e3 if predicted is not None else "",
+                      "outside": bool(where.outside[j]), "distance_ratio": float(where.ratio[j])}
+                     for j, (line, t, b, a) in enumerate(zip(m.lines, m.tools, before, after))]  # fmt: skip
         records.write_csv(out / POSE_ERRORS, rows)
 
 
@@ -144,6 +157,8 @@ def read_sets(robot: ZRPRobot, seed: int, c: MeasuredConf) -> tuple[Measurements
     or the calibration file split at random. The validation file is read in the units the
     calibration file was found in."""
     fmt = measured_format(robot, c)
+    if c.format is Format.zrp:
+        orientation_columns(header(data_path(c.calibration_file)), c.calibration_file, c)
     calib = measurements.read(data_path(c.calibration_file), fmt, robot, c.drop_bad_rows)
     if c.validation_file:
         length, joint = calib.units
@@ -155,12 +170,48 @@ def read_sets(robot: ZRPRobot, seed: int, c: MeasuredConf) -> tuple[Measurements
     return calib, None
 
 
+def header(path: Path) -> list[str]:
+    """The column names of a zrp CSV file (none if it cannot be read: reading it says why)."""
+    if not Path(path).is_file():  # a FIFO or a device is never opened here (reading it refuses it)
+        return []
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            return [c.strip() for c in f.readline().split(",")]
+    except OSError:
+        return []
+
+
+def orientation_columns(columns: list[str], source: Any, c: MeasuredConf) -> None:
+    """Measured orientations (``rx, ry, rz``) without a stated convention are refused in one
+    line naming the setting, unless ``problem.use_orientation=false`` says to leave them out."""
+    if c.orientation_convention is None and c.use_orientation is not False and {"rx", "ry", "rz"} <= set(columns):
+        raise ValueError(f"problem.orientation_convention: {source} has orientation columns rx, ry, rz but no convention is "
+                         "stated: set it (an Euler sequence such as XYZ intrinsic or xyz extrinsic, or rotvec as UR "
+                         "controllers report), or problem.use_orientation=false to fit positions only")  # fmt: skip
+
+
+def resolve_orientation(calib: Measurements, c: MeasuredConf) -> tuple[MeasuredConf, list[str]]:
+    """``c`` with ``use_orientation`` decided: as set, or (null) whenever the calibration data
+    hold orientations of one tool point; a warning when orientations are left out."""
+    if c.use_orientation is not None:
+        return c, []
+    use = calib.R is not None and len(calib.tool_names) <= 1
+    why = []
+    if calib.R is not None and not use:
+        why = [f"{calib.source} measures orientations of {len(calib.tool_names)} tool points; they are not fitted "
+               "(orientations are supported with one tool): positions only"]  # fmt: skip
+    return dataclasses.replace(c, use_orientation=use), why
+
+
 def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | None, c: MeasuredConf,
-                      underdetermined: bool = False) -> MeasuredTask:  # fmt: skip
+                      underdetermined: bool = False, prepared: bool = True) -> MeasuredTask:  # fmt: skip
     """Register ``robot`` to the calibration points, then the calibration problem in the
     instrument's frame; ``val`` (or None) validates (module docstring). Too few points for the
     parameters are refused unless ``underdetermined`` (pose selection judges small subsets so,
-    and says how many directions they identify)."""
+    and says how many directions they identify). ``prepared``: the problem passes its set-up
+    (:func:`zrp_ga.problems.identify.prepare`: noise, outliers, the identified genome); pose
+    selection's calibrations do not."""
+    c, left_out = resolve_orientation(calib, c)
     _check_asked(calib, c)
     names = calib.tool_names or ("tool",)
     known = {str(k): np.asarray(v, dtype=float) * measurements.LENGTH[calib.units[0]] for k, v in (c.known_tools or {}).items()}
@@ -174,7 +225,7 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
         _check_enough(robot, len(names), calib, bool(c.use_orientation))
     reg = register(robot, calib.q, calib.p, rotations=calib.R if c.use_orientation else None, tools=calib.tool,
                    tool_names=names)  # fmt: skip
-    warnings = shared + _registration_warnings(robot, reg, calib)
+    warnings = left_out + shared + _registration_warnings(robot, reg, calib)
     nominal = reg.apply(robot)
     fixed_info: dict[str, Any] = {}
     layout = masked(c, Layout(robot.n, base=True, hand=bool(c.use_orientation), tools=tuple(map(tuple, reg.tools[1:] - reg.tool)),
@@ -182,17 +233,23 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
     half = gene_half_widths(layout, nominal, calib.q, reg, c) if c.ranges is Ranges.data else half_ranges(c, layout)
     data = calib.for_calibration(c.use_orientation, c.use_weights)
     problem = CalibrationProblem(nominal, data, layout, -half, half, c.cost, c.norm, c.orientation_weight, c.kernel)
+    setup = None
+    if prepared:
+        problem, setup = identify.prepare(problem, half / c.search_scale, c.search_scale, c)
     validation = val.for_calibration() if val is not None else None
     name = c.name or f"{robot.name}-{Path(calib.source).stem}"
     info = {"kind": "measured", "files": {"calibration": calib.source, "validation": val.source if val is not None else None},
             "units": {"length": calib.units[0], "joint_angle": calib.units[1]}, "tools": list(names),
+            "use_orientation": bool(c.use_orientation),
             **({"known_tools": {k: v.tolist() for k, v in known.items()}} if known else {}),
-            **fixed_info, "gene_half_widths": dict(zip(layout.names, half.tolist()))}  # fmt: skip
+            **fixed_info, "gene_half_widths": dict(zip(problem.names, problem.upper.tolist())),
+            **({"parameter_half_widths": dict(zip(layout.names, half.tolist()))} if problem.layout is not layout else {})}  # fmt: skip
     sets = {"calibration": calib, **({"validation": val} if val is not None else {})}
-    judge = Judge(layout, nominal, validation, registration=c.validation_registration.value)
+    judge = Judge(problem.layout, nominal, validation, registration=c.validation_registration.value)
     for w in warnings:
         warn(w, log)
-    return MeasuredTask(name, problem, judge, robot, info, warnings, registration=reg, sets=sets)
+    return MeasuredTask(name, problem, judge, robot, info, warnings, setup, c.if_worse.value if c.if_worse else None,
+                        registration=reg, sets=sets)  # fmt: skip
 
 
 def _check_asked(calib: Measurements, c: MeasuredConf) -> None:
@@ -275,6 +332,9 @@ def file_size(robot: ZRPRobot, c: MeasuredConf) -> ProblemSize:
     rows = [file_rows(data_path(f)) if f else 0 for f in (c.calibration_file, c.validation_file)]
     f = c.validation_fraction or 0.0
     M, V = (rows[0], rows[1]) if rows[1] else (round(rows[0] * (1 - f)), round(rows[0] * f))
+    if c.use_orientation is None:  # fitted when the file has them: counted when it may
+        has = c.format is Format.ur10_ipa or {"rx", "ry", "rz"} <= set(header(data_path(c.calibration_file)))
+        c = dataclasses.replace(c, use_orientation=bool((has and c.orientation_convention) or c.format is Format.ur10_ipa))
     columns = robot.n + 3 + 3 * bool(c.use_orientation)
     poses = ("problem.calibration_file", f"calibrate on fewer of its about {rows[0]} rows")
     validation = ("problem.validation_file", f"validate on fewer of its about {rows[1]} rows") if rows[1] else poses
@@ -284,6 +344,7 @@ def file_size(robot: ZRPRobot, c: MeasuredConf) -> ProblemSize:
 def data_size(robot: ZRPRobot, c: MeasuredConf, calib: Measurements, val: Measurements | None) -> ProblemSize:
     """The size of :func:`from_measurements` on data in memory (``zrp_ga.calibrate``'s ``data``
     and ``validation``)."""
+    c, _ = resolve_orientation(calib, c)
     lower = {"poses": ("data", f"calibrate on fewer of its {calib.M} rows"),
              "validation": ("validation", f"validate on fewer of its {val.M if val is not None else 0} rows")}  # fmt: skip
     return _sized(robot, c, calib.M, 0 if val is None else val.M, (0, 0), lower)

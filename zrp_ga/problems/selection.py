@@ -323,7 +323,7 @@ def measured(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any]
     """The rows of ``calibration_file`` as candidates, validated on ``validation_file`` (or a
     random ``validation_fraction`` of the rows); each calibration registers to its own rows."""
     cand, val = read_sets(robot, seed, c)
-    on = lambda rows: from_measurements(robot, cand.subset(rows), val, c, underdetermined=True)
+    on = lambda rows: from_measurements(robot, cand.subset(rows), val, c, underdetermined=True, prepared=False)
     files = {"calibration": cand.source, "validation": val.source if val is not None else None}
     name = f"{robot.name}-{Path(cand.source).stem}-select{c.k}-{c.index.value}"
     return dict(candidates=cand, calibrate_on=on, truth_x=None, name=name, info={"kind": "pose_selection", "files": files})

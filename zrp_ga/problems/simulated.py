@@ -12,7 +12,7 @@ from zrp_ga.model.cost import CalibrationProblem
 from zrp_ga.model.layout import Layout
 from zrp_ga.model.metrics import Judge
 from zrp_ga.model.robot import ZRPRobot
-from zrp_ga.problems import Task, half_ranges, masked
+from zrp_ga.problems import Task, half_ranges, identify, masked
 from zrp_ga.problems.size import ProblemSize, calibration
 
 
@@ -35,12 +35,14 @@ def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> Task:
     )  # fmt: skip
     half = half_ranges(c, layout)
     problem = CalibrationProblem(robot, sim.calibration, layout, -half, half, c.cost, c.norm, c.orientation_weight, c.kernel)
+    problem, setup = identify.prepare(problem, half / c.search_scale, c.search_scale, c)
     validation = sim.validation if c.n_validation else None
     q = sim.calibration.q if validation is None else np.vstack([sim.calibration.q, validation.q])
     projector = metrics.identifiable_projector(robot, full, q, c.position_only)
     name = c.name or f"{robot.name}-{c.n_poses}pose{'s' if c.n_poses > 1 else ''}-{c.cost.value}-seed{instance_seed}"
-    return Task(name, problem, Judge(layout, robot, validation, sim.true_x, projector), robot,
-                info | {"seed": instance_seed})  # fmt: skip
+    return Task(name, problem, Judge(problem.layout, robot, validation, sim.true_x, projector), robot,
+                info | {"seed": instance_seed}, setup=setup,
+                if_worse=c.if_worse.value if c.if_worse else None)  # fmt: skip
 
 
 def size(robot: ZRPRobot, **settings) -> ProblemSize:

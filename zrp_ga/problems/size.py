@@ -13,9 +13,10 @@ calibration and V validation poses, ``R = r M + n`` residual rows (:func:`calibr
   twice, the stacked Jacobian ``(R, K)`` the problem keeps and two more in the identifiability
   SVD; the text of the measurement file while it is read (about 160 bytes a cell);
 - **validation**: the same Jacobians and file text for the validation poses;
-- **parameters**: five ``(K, K)`` matrices (the SVD's ``V``, the identity whose rows name
+- **parameters**: eight ``(K, K)`` matrices (the SVD's ``V``, the identity whose rows name
   unidentifiable genes, the null-space basis and its QR, the projector on the identifiable
-  directions);
+  directions; the identified subspace's (:mod:`zrp_ga.model.subspace`): the axes' tangent
+  basis, the directions, the factor of the prior of those left at nominal);
 - **per genome evaluated at once**: two residual vectors ``(R,)`` (the linear cost's
   ``y - X J^T``).
 
@@ -29,7 +30,7 @@ measured peaks.
 
 >>> p = calibration(n=6, genes=42, poses=30, validation=100, rows_per_pose=6)
 >>> p.rows, round(sum(p.held_bytes.values()) / 1e6, 2), p.genome_bytes
-(186, 1.44, 2976)
+(186, 1.48, 2976)
 """
 
 from __future__ import annotations
@@ -89,7 +90,7 @@ def calibration(n: int, genes: int, poses: int, validation: int, rows_per_pose: 
     held = {
         "poses": jacobians(M) + FLOAT * 3 * R * K + CELL_BYTES * cells[0],
         "validation": jacobians(V) + CELL_BYTES * cells[1],
-        "parameters": FLOAT * 5 * K * K,
+        "parameters": FLOAT * 8 * K * K,
     }
     build = {
         "poses": JACOBIAN_S * M * K + ROWS_S * R * K * min(R, K) + FILE_ROW_S * cells[0] / max(n + 3, 1),

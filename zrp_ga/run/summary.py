@@ -51,7 +51,7 @@ def model_rank(task: Task) -> int:
     from zrp_ga.model.cost import model_rank as rank
 
     p = task.problem
-    return rank(p.nominal, p.layout, p.data.position_only)
+    return rank(p.nominal, task.layout, p.data.position_only)
 
 
 def diagnostics(task: Task, first: bool, key: str, cache: Cache, sweep: Path | None = None) -> dict[str, Any]:
@@ -70,12 +70,13 @@ def diagnostics(task: Task, first: bool, key: str, cache: Cache, sweep: Path | N
 
 
 def _compute(task: Task) -> dict[str, Any]:
-    report = task.problem.identifiability()  # plain numbers, as they read back from JSON
+    report = task.identifiability()  # plain numbers, as they read back from JSON
     return {"rank": int(report.rank), "model_rank": model_rank(task), "n_params": int(report.n_params),
             "condition_number": float(report.condition_number), "unidentifiable": list(report.null_directions)}  # fmt: skip
 
 
 ROUND_OFF = directory.ROUND_OFF
+UNCERTAINTY, COVERAGE = "uncertainty.json", "coverage.json"
 
 
 def floor(task: Task, key: str | None = None, cache: Cache | None = None, sweep: Path | None = None) -> dict[str, float]:
@@ -135,21 +136,22 @@ def _listed(names: list[str], mask: np.ndarray, k: int = 6) -> str:
 
 
 def warnings(task: Task, result: Result, nominal_cost: float, val: dict[str, float], returned: str,
-             reported: np.ndarray) -> list[str]:  # fmt: skip
+             reported: np.ndarray, notes: list[str] = ()) -> list[str]:  # fmt: skip
     """Whatever makes the result other than it seems: what the problem found while it was
     built, worse than the nominal model on the calibration or validation data (and what is
     returned then), genes held by their range bounds (:func:`on_bounds`; ``reported`` is the
-    gauge-fixed optimiser genome), divergence."""
-    p, out = task.problem, list(task.warnings)
+    gauge-fixed optimiser genome), divergence; ``notes``: the assessment's
+    (:mod:`zrp_ga.problems.assessment`: extrapolation, outliers, predicted worse than nominal)."""
+    p, out = task.problem, list(task.warnings) + list(notes)
     then = "; the nominal arm is returned instead" if returned == "nominal" else ""
     if result.x is None or not np.isfinite(result.cost):
         out.append(f"the optimiser diverged: its best cost is {result.cost}{then}")
     elif result.cost > nominal_cost:
         out.append(f"the calibrated model fits the calibration data worse than the nominal one "
                    f"(cost {result.cost:.6g} > {nominal_cost:.6g}){then}")  # fmt: skip
-    if np.isfinite(val["calibrated"]) and val["calibrated"] > val["nominal"]:
+    if np.isfinite(val["found"]) and val["found"] > val["nominal"]:
         out.append(f"the calibrated model predicts the validation poses worse than the nominal one "
-                   f"(RMS {val['calibrated']:.4g} mm > {val['nominal']:.4g} mm)")  # fmt: skip
+                   f"(RMS {val['found']:.4g} mm > {val['nominal']:.4g} mm){then}")  # fmt: skip
     if result.x is None:
         return out
     on, beyond = on_bounds(task, result.x, reported)
@@ -165,22 +167,32 @@ def warnings(task: Task, result: Result, nominal_cost: float, val: dict[str, flo
 
 
 def judged(task: Task, result: Result) -> tuple[dict, np.ndarray]:
-    """The reported genome and ``summary.json``'s entries that judge it: final cost (the
-    nominal arm's when it is returned instead, :func:`worse_than_nominal`), nominal cost,
-    validation error and parameter error of the nominal and the calibrated arm, warnings, the
-    genome by name. The genome is gauge-fixed for the nonlinear cost. A problem kind whose
-    genomes are not parameter errors judges its own (``task.judged(result)``, e.g.
+    """The reported genome and ``summary.json``'s entries that judge it, the assessment's
+    among them (:func:`zrp_ga.problems.assessment.assess`: what the data identify, the
+    uncertainty, the coverage, the outliers): final cost (the nominal arm's when it is returned instead),
+    nominal cost, validation error and parameter error of the nominal and the calibrated arm,
+    warnings, the genome by name. The nominal arm is returned when the optimiser diverged, or
+    its model is worse than nominal on the calibration or the validation data or predicted
+    worse over its own coverage, and the task says so (``problem.if_worse``,
+    :attr:`Task.returns_nominal`). The genome is gauge-fixed for the nonlinear cost. A problem
+    kind whose genomes are not parameter errors judges its own (``task.judged(result)``, e.g.
     zrp_ga.problems.selection)."""
     if isinstance(task, SelfJudging):
         return task.judged(result)
+    from zrp_ga.problems.assessment import assess
+
     p, judge = task.problem, task.judge
     zero = np.zeros(p.layout.size)
     nominal_cost = float(p.costs(zero)[0])
-    returned = "nominal" if task.nominal_if_worse and worse_than_nominal(result, nominal_cost) else "optimiser"
     found = result.x if result.x is not None else zero
     found = error_model.canonical(p.layout, p.nominal, found) if p.cost is Cost.nonlinear else found
+    before, at_found = judge.validation_errors(zero), judge.validation_errors(found)
+    a = assess(task, found, float(at_found[0][0]))
+    worse_val = bool(np.isfinite(at_found[0][0]) and at_found[0][0] > before[0][0])
+    worse = worse_than_nominal(result, nominal_cost) or worse_val or a.predicted_worse
+    returned = "nominal" if task.returns_nominal and worse else "optimiser"
     x, final_cost = (zero, nominal_cost) if returned == "nominal" else (found, result.cost)
-    before, after = judge.validation_errors(zero), judge.validation_errors(x)
+    after = before if returned == "nominal" else at_found
     val_rms = {"nominal": float(before[0][0]) * 1e3, "calibrated": float(after[0][0]) * 1e3}
     return {
         "final_cost": final_cost,
@@ -190,8 +202,10 @@ def judged(task: Task, result: Result) -> tuple[dict, np.ndarray]:
         "validation_rms_mm": val_rms,
         "validation_max_mm": {"nominal": float(before[1][0]) * 1e3, "calibrated": float(after[1][0]) * 1e3},
         "param_err": {"nominal": float(judge.param_error(zero)[0]), "calibrated": float(judge.param_error(x)[0])},
-        "warnings": warnings(task, result, nominal_cost, val_rms, returned, found),
+        "warnings": warnings(task, result, nominal_cost, {**val_rms, "found": float(at_found[0][0]) * 1e3}, returned, found,
+                             a.warnings + a.worse_note("; the nominal arm is returned instead" if returned == "nominal" else "")),
         "best_genome": dict(zip(p.names, x.tolist())),
+        **a.entries,
     }, x
 
 
@@ -221,6 +235,7 @@ def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wa
         "validation_max_mm": j["validation_max_mm"],
         "param_err": j["param_err"],
         "identifiability": diagnostics,
+        **{k: j[k] for k in ("identified", "uncertainty", "coverage", "outliers") if k in j},
         "robot": {"name": robot.name, "joints": robot.n, "joint_types": robot.joint_types},
         "robot_model": robot.to_dict(),  # the arm as given (ZRP, before any registration)
         "problem": task.info,
@@ -246,6 +261,14 @@ def write(out: Path, task: Task, result: Result, summary: dict, x: np.ndarray) -
     records.write_csv(out / directory.BEST_PARAMS, params)
     records.write_population(out / directory.INITIAL_POPULATION, p.names, result.initial_x, result.initial_costs)
     task.write(out, x)
+    if "coverage" in summary:  # what zrp_ga.model.uncertainty.predict_error_mm and coverage.assess_targets read
+        from zrp_ga.model.coverage import Coverage
+        from zrp_ga.problems.identify import uncertainty
+
+        unc = uncertainty(p, x, task.setup) if summary["returned"] == "optimiser" else None
+        if unc is not None:
+            unc.write(out / UNCERTAINTY)
+        records.write_json(out / COVERAGE, Coverage(p.data.q).to_dict())
     summary["calibrated_robot"] = write_robot(out, task, x)
     records.write_json(out / directory.SUMMARY, summary)
 
@@ -285,6 +308,29 @@ def console(out: Path, job: tuple[int, str] | None = None) -> None:
           f"final/initial = {s['final_over_initial']:.3g}" + (" (the paper: 0.241 after 11 iterations)" if paper else ""))  # fmt: skip
     if v["nominal"] is not None:
         print(f"validation RMS position error on unseen poses: {_mm(v['nominal'])} mm nominal -> {_mm(v['calibrated'])} mm calibrated")
+    line = uncertainty_line(s)
+    if line:
+        print(line)
+
+
+def uncertainty_line(s: dict) -> str:
+    """The one console line on how sure the result is: the predicted 1-sigma error at the
+    calibration poses, the predicted against the measured validation RMS, the share of the
+    validation poses outside the calibrated region, and the combinations left at nominal."""
+    u, ident = s.get("uncertainty") or {}, s.get("identified") or {}
+    if not u.get("available"):
+        return "uncertainty: n/a (" + u.get("why", "none computed") + ")" if u else ""
+    cal = u["calibration_poses_mm"]
+    parts = [f"uncertainty: +-{cal['identified_rms']:.3g} mm (1 sigma, RMS over the calibration poses; noise {u['noise_mm']:.3g} mm)"]
+    if "validation_rms_mm" in u:
+        v = u["validation_rms_mm"]
+        parts.append(f"validation RMS predicted {v['predicted']:.4g} mm, measured {v['measured']:.4g} mm")
+    where = (s.get("coverage") or {}).get("validation")
+    if where:
+        parts.append(f"{where['share_outside']:.0%} of validation poses outside the calibrated region")
+    if ident.get("subspace") == "identified":
+        parts.append(f"{ident['rank']} of {ident['combinations']} combinations identified, {ident['dropped']} left at nominal")
+    return "; ".join(parts)
 
 
 def _mm(value: float | None) -> str:

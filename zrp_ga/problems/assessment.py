@@ -1,0 +1,177 @@
+"""How far a calibration can be trusted, for ``summary.json``, the console and
+:func:`zrp_ga.calibrate`'s result: what the data identified and what was left at nominal, the
+uncertainty of the result (:mod:`zrp_ga.model.uncertainty`) and what it predicts on the
+validation poses against what was measured there, where the validation poses lie against the
+calibration's coverage (:mod:`zrp_ga.model.coverage`), the outliers, and whether the model is
+predicted to be worse than the nominal arm over its own coverage.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zrp_ga.model import metrics, subspace
+from zrp_ga.model.coverage import MOST, Coverage
+from zrp_ga.model.uncertainty import Uncertainty
+from zrp_ga.problems import Task, identify
+
+Array = NDArray[np.float64]
+SUBSPACE_MOVED_RAD = 0.05  # the identified directions at the result this far from those searched: a warning
+
+
+@dataclasses.dataclass
+class Assessment:
+    """The entries for ``summary.json`` (``identified``, ``uncertainty``, ``coverage``,
+    ``outliers``), the warnings, the :class:`Uncertainty` and :class:`Coverage` (their files),
+    and whether the model is predicted to be worse than nominal over its own coverage (the
+    warning's words, :meth:`worse_note`)."""
+
+    entries: dict[str, Any]
+    warnings: list[str]
+    uncertainty: Uncertainty | None
+    coverage: Coverage
+    predicted_worse: bool
+
+    def worse_note(self, then: str = "") -> list[str]:
+        """The warning that the model is predicted worse than nominal (none when it is not),
+        ending with ``then`` (what is returned instead)."""
+        if not self.predicted_worse:
+            return []
+        p = self.entries["uncertainty"]["predicted_model_rms_mm"]
+        return [f"the calibrated model is predicted to be worse than the nominal one over its own coverage "
+                f"({p['calibrated']:.4g} mm > {p['nominal']:.4g} mm RMS at the calibration poses){then}"]  # fmt: skip
+
+
+def assess(task: Task, x: Array, val_rms_m: float) -> Assessment:
+    """The assessment of the calibrated genome ``x`` (the problem's genome) whose measured
+    validation RMS is ``val_rms_m`` (NaN: no validation poses)."""
+    p, setup = task.problem, task.setup
+    unc = identify.uncertainty(p, x, setup)
+    cov = Coverage(p.data.q)
+    out: dict[str, Any] = {"identified": identified(task, x), "outliers": outliers(task)}
+    notes: list[str] = []
+    out["coverage"] = {"joint_ranges": np.column_stack([cov.lower, cov.upper]).tolist(), "gap": cov.gap}
+    val = task.judge.validation
+    if val is not None:
+        where = cov.assess(val.q)
+        out["coverage"]["validation"] = where.summary()
+        out["coverage"]["validation_is_extrapolation"] = bool(where.share_outside > MOST)
+        if where.share_outside > MOST:
+            joints = [str(j + 1) for j, s in enumerate(np.mean(where.beyond, axis=0)) if s > MOST]
+            beyond = f" (joint{'s' * (len(joints) > 1)} {', '.join(joints)} beyond the calibrated range)" if joints else ""
+            notes.append(f"{where.share_outside:.0%} of the validation poses lie outside the joint-space region the calibration "
+                         f"poses cover{beyond}: the validation is extrapolation")  # fmt: skip
+    worse = False
+    u: dict[str, Any] = {"available": unc is not None}
+    if unc is not None:
+        u.update(_uncertainty_entries(task, x, unc, val_rms_m))
+        worse = bool(u["predicted_model_rms_mm"]["calibrated"] > u["predicted_model_rms_mm"]["nominal"])
+    else:
+        u["why"] = "the data leave no residual degrees of freedom to estimate the noise"
+    out["uncertainty"] = u
+    notes += _outlier_notes(out["outliers"]) + _moved_note(out["identified"])
+    return Assessment(out, notes, unc, cov, worse)
+
+
+def identified(task: Task, x: Array) -> dict[str, Any]:
+    """What the data identify (``summary.json``'s ``identified``): the genome's kind and size,
+    the rule, the dropped combinations in words, the noise, and the identified directions
+    computed again at the result (rank and largest angle to those searched)."""
+    setup = task.setup
+    if setup is None:
+        return {"subspace": "full", "genes": task.problem.layout.size}
+    s = setup.subspace
+    entry: dict[str, Any] = {"subspace": "full" if s is None else "identified", "genes": task.problem.layout.size,
+                             "parameters": setup.layout.size, "seen_at_nominal": setup.exact_rank,
+                             "noise": setup.noise.to_dict(), "first_fit": {"cost": setup.cost, "nevals": setup.nevals}}  # fmt: skip
+    if s is None:
+        return entry
+    n = task.problem.nominal.n
+    arm = setup.layout.robot(task.problem.nominal, setup.x)
+    U = setup.problem.J_nominal[-n:]
+    entry.update(rule=s.rule(), max_se=s.max_se, rank=s.rank, combinations=len(s.singular_values),
+                 dropped=len(s.singular_values) - s.rank,
+                 dropped_combinations=subspace.describe(s, setup.layout.names, arm, U),
+                 standard_errors_expected=None if s.standard_errors is None else s.standard_errors[: s.rank].round(4).tolist())  # fmt: skip
+    entry["at_result"] = _at_result(task, x)
+    return entry
+
+
+def _at_result(task: Task, x: Array) -> dict[str, Any]:
+    """Rule 1 (the directions the poses see at all) applied again at the result ``x`` and at
+    the first fit's point, where the genome was chosen: their numbers and the largest principal
+    angle (rad) between them. (Directions near the noise threshold, rule 2, come and go with
+    any refit; these do not unless the fit moved the arm where other combinations are seen.)"""
+    setup = task.setup
+    base, n = setup.problem, task.problem.nominal.n
+
+    def seen(at: Array) -> subspace.Subspace | None:
+        J = identify.plain(base, "jacobian", at)
+        try:
+            return subspace.identify(J[:-n], J[-n:], setup.prior, None)
+        except ValueError:
+            return None
+
+    now, then = seen(setup.layout.restrict(task.problem.layout.expand(x))), seen(setup.x)
+    if now is None or then is None:
+        return {"rank": 0 if now is None else now.rank, "first_fit_rank": 0 if then is None else then.rank, "angle_rad": float(np.pi / 2)}
+    return {"rank": now.rank, "first_fit_rank": then.rank, "angle_rad": subspace.principal_angle(now.basis, then.basis)}
+
+
+def outliers(task: Task) -> dict[str, Any]:
+    setup = task.setup
+    if setup is None:
+        return {"found": []}
+    return {"found": setup.outliers, "dropped": setup.dropped, "change": setup.change,
+            "loss": getattr(task.problem, "loss", "linear"),
+            "loss_scale_mm": None if setup.loss_scale is None else setup.loss_scale * 1e3}  # fmt: skip
+
+
+def _uncertainty_entries(task: Task, x: Array, unc: Uncertainty, val_rms_m: float) -> dict[str, Any]:
+    """Standard errors, predicted model error at the calibration poses (calibrated and
+    nominal), predicted and measured validation RMS."""
+    p = task.problem
+    L = p.layout.restrict(unc.cov_factor.T).T  # G L: the genome's covariance factor
+    se = np.sqrt(np.sum(L**2, axis=1))
+    data = p.data
+    model = unc.predicted_rms_m(data.q, data.tools, noise=False)
+    nominal_err = metrics.position_errors(p.layout, p.nominal, np.zeros(p.layout.size), data)
+    nominal_model = np.sqrt(max(np.mean(nominal_err**2) - 3 * unc.noise_m**2, 0.0))
+    pred_cal = unc.predict(data.q[data.tools == 0])
+    entry = {"noise_mm": unc.noise_m * 1e3, "noise_source": unc.source,
+             "standard_errors": dict(zip(p.names, se.tolist())),
+             "calibration_poses_mm": {"identified_rms": _rms(pred_cal["position_m"]) * 1e3,
+                                      "unidentified_rms": _rms(pred_cal["position_unidentified_m"]) * 1e3,
+                                      "orientation_mrad_rms": _rms(pred_cal["orientation_rad"]) * 1e3},
+             "predicted_model_rms_mm": {"calibrated": model * 1e3, "nominal": float(nominal_model) * 1e3}}  # fmt: skip
+    val = task.judge.validation
+    if val is not None:
+        predicted = unc.predicted_rms_m(val.q, val.tools)
+        entry["validation_rms_mm"] = {"predicted": predicted * 1e3, "measured": val_rms_m * 1e3,
+                                      "measured_over_predicted": val_rms_m / predicted if predicted > 0 else float("nan")}  # fmt: skip
+    return entry
+
+
+def _rms(a: Array) -> float:
+    return float(np.sqrt(np.mean(np.square(a)))) if np.size(a) else float("nan")
+
+
+def _outlier_notes(o: dict[str, Any]) -> list[str]:
+    found = o.get("found") or []
+    if not found:
+        return []
+    listed = ", ".join(f"{f['where']} ({f['size_mm']:.3g} mm)" for f in found[:8]) + (" ..." if len(found) > 8 else "")
+    what = "dropped and the fit repeated without them" if o.get("dropped") else "kept (problem.outliers=drop fits without them)"
+    return [f"{len(found)} point(s) of {found[0]['file']} lie far beyond the noise: {listed}; {what}"]
+
+
+def _moved_note(entry: dict[str, Any]) -> list[str]:
+    now = entry.get("at_result")
+    if not now or (now["rank"] == now["first_fit_rank"] and now["angle_rad"] <= SUBSPACE_MOVED_RAD):
+        return []
+    return [f"at the result the poses see {now['rank']} combinations ({now['first_fit_rank']} where the genome was chosen; "
+            f"largest angle {now['angle_rad']:.3g} rad): the fit moved the arm where other combinations are seen"]  # fmt: skip
