@@ -17,9 +17,11 @@ ALGORITHMS = {
 
 def fake_run(path: Path, instance: str, algorithm: str, rows: list[tuple[int, float]], *, final: float | None = None,
              nominal: float = 10.0, floor: float | None = None, seed: int = 0, initial: list[float] | None = None,
-             validation: float | None = 1.0, config: dict | None = None, choices: dict | None = None) -> Path:  # fmt: skip
+             validation: float | None = 1.0, config: dict | None = None, choices: dict | None = None,
+             stop_reason: str = "max_evals") -> Path:  # fmt: skip
     """A finished run in ``path``: ``rows`` are (evaluations, best cost) per generation; the final
-    cost is the last row's unless ``final`` is given (None there writes null, a diverged run)."""
+    cost is the last row's unless ``final`` is given (None there writes null, a diverged run);
+    ``stop_reason``: why it stopped (its budget, by default; anything else: by itself)."""
     path.mkdir(parents=True)
     lines = ["gen,nevals,best,mean"] + [f"{g},{e},{b!r},{b!r}" for g, (e, b) in enumerate(rows)]
     (path / "convergence.csv").write_text("\n".join(lines) + "\n")
@@ -30,6 +32,7 @@ def fake_run(path: Path, instance: str, algorithm: str, rows: list[tuple[int, fl
         "instance": instance, "algorithm": algorithm, "choices": {"algorithm": algorithm} if choices is None else choices, "seed": seed,
         "final_cost": cost, "initial_cost": rows[0][1], "nominal_cost": nominal,
         "final_over_initial": None if cost is None else cost / rows[0][1], "nevals": rows[-1][0], "wall_s": 0.1,
+        "stop_reason": stop_reason,
         "validation_rms_mm": {"nominal": None if validation is None else 10.0, "calibrated": validation},
         "best_genome": {"g1": 0.5, "g2": -0.25}, "config": {"algorithm": config or ALGORITHMS[algorithm], "seed": seed},
     }  # fmt: skip

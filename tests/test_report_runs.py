@@ -12,8 +12,8 @@ import pandas as pd
 import pytest
 
 from zrp_ga import config, report, robots
-from zrp_ga.cli import report as report_cli
 from zrp_ga.algorithms.ga import GA
+from zrp_ga.cli import report as report_cli
 from zrp_ga.model import kinematics
 from zrp_ga.model.simulation import random_joints
 from zrp_ga.run import execute
@@ -164,10 +164,10 @@ def test_malformed_runs_are_left_out_by_name_and_the_rest_reported(kinds, tmp_pa
     cases = _damaged(kinds, where)
     shutil.copytree(kinds / "paper-lm", where / "intact")
     t = report.write_report([where], tmp_path / "r", formats=())
-    assert list(t["runs"]["run"]) == [str(where / "intact")]
+    assert list(t["runs"]["run"]) == ["../runs/intact"]  # relative to the report
     reasons = dict(pd.read_csv(tmp_path / "r" / "left_out.csv").itertuples(index=False))
     for name, reason in cases.items():
-        assert reasons[str(where / name)].startswith(reason), (name, reasons[str(where / name)])
+        assert reasons[f"../runs/{name}"].startswith(reason), (name, reasons[f"../runs/{name}"])
 
 
 def test_bad_paths_are_one_line_errors_and_nothing_is_written(kinds, tmp_path, capsys):

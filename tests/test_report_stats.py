@@ -9,7 +9,7 @@ import pytest
 from scipy import stats as sps
 
 from zrp_ga.report import stats
-from zrp_ga.report.tables import factorial, within_instances
+from zrp_ga.report.compare import factorial, within_instances
 
 
 def test_friedman_with_seeds_as_blocks_known_answer():
@@ -103,7 +103,14 @@ def test_bootstrap_intervals_hold_the_estimate_and_narrow_with_more_data():
 
 
 def _runs_frame(rows):
-    return pd.DataFrame(rows, columns=["run", "configuration", "instance", "seed", "final_cost", "final_over_ref", "x", "y"])
+    df = pd.DataFrame(rows, columns=["run", "configuration", "instance", "seed", "final_cost", "final_over_ref", "x", "y"])
+    return df.assign(score=df["final_over_ref"])
+
+
+def _asked(df, tol=0.0):
+    """Every instance's question: the final cost (as ``score``), values within ``tol`` tied."""
+    return {i: dict(metric="final cost / f_ref", column="score", tol=tol, tied=False, at_floor=False, level=math.nan)
+            for i in df["instance"].unique()}  # fmt: skip
 
 
 def test_within_instances_pairs_by_seed_and_corrects_over_instances():
@@ -113,7 +120,8 @@ def test_within_instances_pairs_by_seed_and_corrects_over_instances():
             base = 10.0**seed  # seeds differ by decades: only a paired test sees the configurations' difference
             for c, shift in (("good", 0.0), ("bad", effect)):
                 rows.append((f"{inst}{c}{seed}", c, inst, seed, base + shift, base + shift, c, ""))
-    w = within_instances(_runs_frame(rows))
+    df = _runs_frame(rows)
+    w = within_instances(df, _asked(df))
     i1 = w[(w["instance"] == "I1") & (w["a"] != "all")].iloc[0]
     assert i1["test"] == "Wilcoxon signed-rank" and i1["p"] == pytest.approx(2 / 64)  # six of six: exact
     assert sps.mannwhitneyu(*[[r[4] for r in rows if r[2] == "I1" and r[1] == c] for c in ("good", "bad")]).pvalue > 0.5
@@ -132,7 +140,8 @@ def test_factorial_main_effects_paired_by_the_other_settings():
                 for x in ("x0", "x1"):
                     v = base * (1.5 if x == "x1" else 1.0)
                     rows.append((f"{inst}{seed}{x}{y}", f"{x} {y}", inst, seed, v, v, x, y))
-    tests, medians = factorial(_runs_frame(rows), ["x", "y"])
+    df = _runs_frame(rows)
+    tests, medians = factorial(df, ["x", "y"], _asked(df))
     x = tests[(tests["setting"] == "x") & (tests["a"] != "all")].set_index("instance")
     assert set(x["design"]) == {stats.PAIRED}
     assert x.loc["I1", "n_a"] == 10  # blocks: 5 seeds x 2 values of y
