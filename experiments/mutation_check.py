@@ -37,6 +37,7 @@ WARN = "tests/test_warning_paths.py"
 MODEL = ["tests/test_so3.py", "tests/test_kinematics.py"]
 UNITS = ["tests/test_measurement_files.py", "tests/test_measurement_units.py"]
 REPORT_STATS = ["tests/test_report_stats.py", "tests/test_report.py"]
+REPORT_SENTENCES = ["tests/test_report_sentences.py"]
 
 PLANTS: list[dict] = [
     # --- operators: the distributions ---------------------------------------------------------
@@ -160,6 +161,17 @@ PLANTS: list[dict] = [
     dict(name="nemenyi-p-no-sqrt2", file="zrp_ga/report/stats.py",
          old="q = math.sqrt(2) * abs(mean[a] - mean[b]) / se", new="q = abs(mean[a] - mean[b]) / se",
          tests=REPORT_STATS, what="Nemenyi: pairwise p-values without the factor sqrt 2"),
+    # --- the report's sentences (issue 27): against made-up studies whose answers are known ------------
+    dict(name="report-worst-named-best", file="zrp_ga/report/compare.py",
+         old='best = g.groupby("configuration", sort=False)[q["column"]].median().idxmin()',
+         new='best = g.groupby("configuration", sort=False)[q["column"]].median().idxmax()',
+         tests=REPORT_SENTENCES, what="report: the configuration with the highest median named the best of its instance"),
+    dict(name="report-lost-counted-beaten", file="zrp_ga/report/stats.py",
+         old="return BETTER if direction > 0 else WORSE", new="return BETTER",
+         tests=REPORT_SENTENCES, what="report: a rival the configuration loses to (significantly) counted as beaten"),
+    dict(name="report-effect-wrong-side", file="zrp_ga/report/conclusions.py",
+         old='return str(row["a"]), FLIP.get(v, v), 1 - e, 1 - hi, 1 - lo', new='return str(row["a"]), FLIP.get(v, v), e, lo, hi',
+         tests=REPORT_SENTENCES, what="report: the effect P(best ends lower) given from the other side of the pair"),
 ]
 
 
@@ -232,24 +244,38 @@ def main(argv: list[str] | None = None) -> int:
     return 0 if caught == len(rows) else 1
 
 
+def _kept(out: Path, run: set[str]) -> dict[str, str]:
+    """The table lines of plants not run this time, by name, from the table already in ``out``
+    (a run with ``--only`` adds its plants' rows to the table rather than replacing it)."""
+    if not out.exists():
+        return {}
+    lines = [ln for ln in out.read_text().splitlines() if ln.startswith("| ") and not ln.startswith(("| plant ", "| --- "))]
+    return {ln.split(" | ")[0][2:]: ln for ln in lines if ln.split(" | ")[0][2:] not in run}
+
+
 def write(out: Path, rows: list, argv: list[str] | None) -> None:
     cmd = " ".join(["python experiments/mutation_check.py", *(argv if argv is not None else sys.argv[1:])])
-    caught = sum(r[1].startswith("caught") for r in rows)
+    lines_of = _kept(out, {p["name"] for p, *_ in rows}) if argv is None or "--only" in (argv or sys.argv[1:]) else {}
+    for p, result, secs, line in rows:
+        test = line.removeprefix("FAILED ").removeprefix("ERROR ").split(" - ")[0].replace("|", "\\|")
+        tests = ", ".join(Path(t).name for t in p["tests"])
+        lines_of[p["name"]] = f"| {p['name']} | {p['file']} | {p['what']} | {tests} | {result} | {secs:.0f} | {test} |"
+    order = [p["name"] for p in PLANTS if p["name"] in lines_of]
+    table = [lines_of[n] for n in order]
+    caught = sum(" | caught" in ln for ln in table)
+    kept = " The rows of plants not in this run are those of the table before it." if len(table) > len(rows) else ""
     lines = [
         "# Mutation check: planted bugs and the tests that catch them",
         "",
         f"Command: `{cmd}` (each plant applied alone to a copy of the repository; the named test files run with "
-        "`python -m pytest -x -q -p no:cacheprovider FILES`).",
+        f"`python -m pytest -x -q -p no:cacheprovider FILES`).{kept}",
         "",
-        f"**{caught} of {len(rows)} plants caught.**",
+        f"**{caught} of {len(table)} plants caught.**",
         "",
         "| plant | file | bug | tests | result | s | first failing test |",
         "| --- | --- | --- | --- | --- | ---: | --- |",
+        *table,
     ]
-    for p, result, secs, line in rows:
-        test = line.removeprefix("FAILED ").removeprefix("ERROR ").split(" - ")[0].replace("|", "\\|")
-        tests = ", ".join(Path(t).name for t in p["tests"])
-        lines.append(f"| {p['name']} | {p['file']} | {p['what']} | {tests} | {result} | {secs:.0f} | {test} |")
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines) + "\n")
 

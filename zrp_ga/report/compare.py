@@ -76,28 +76,33 @@ def _holm_over(df: pd.DataFrame, sel: pd.Series) -> None:
 
 
 def within_instances(runs_df: pd.DataFrame, asked: dict[str, dict]) -> pd.DataFrame:
-    """Per instance: the configurations compared on the instance's question, paired by seed when
-    they share their seeds (:func:`zrp_ga.report.stats.compare_design`); the omnibus p-values
-    Holm-adjusted over the instances; confidence intervals for the pairs holding the instance's
-    best configuration (lowest median), named in ``best``."""
+    """Per instance: the configurations compared on the instance's question (``question`` True),
+    paired by seed when they share their seeds (:func:`zrp_ga.report.stats.compare_design`); the
+    omnibus p-values Holm-adjusted over the instances; confidence intervals for the pairs
+    holding the instance's best configuration (lowest median), named in ``best``. Where every
+    run ties (the question is evaluations) the final costs' verdicts are there too (``question``
+    False): equivalent, every run within the tolerance."""
     out = []
     for instance, g in runs_df.groupby("instance", sort=False):
         q = asked[instance]
         block = _seed_blocks(g)
-        groups = {lab: pd.Series(h[q["column"]].to_numpy(dtype=float), index=block[h.index])
-                  for lab, h in g.groupby("configuration", sort=False)}  # fmt: skip
-        if len(groups) < 2 or max(len(v) for v in groups.values()) < 2:  # one run each: nothing to test within
+        if g.groupby("configuration").size().max() < 2 or g["configuration"].nunique() < 2:  # one run each: nothing to test within
             continue
-        best = g.groupby("configuration", sort=False)[q["column"]].median().idxmin()
-        t = stats.compare_design(groups, best=best, tol=q["tol"])
-        t.insert(0, "instance", instance)
-        t.insert(1, "best", best)
-        t.insert(2, "metric", q["metric"])
-        out.append(t)
+        asks = [(q["column"], q["tol"], q["metric"], True)]
+        if q["tied"]:
+            asks.append((SCORE, 1.0, "final cost / f_ref", False))
+        for column, tol, metric, question in asks:
+            groups = {lab: pd.Series(h[column].to_numpy(dtype=float), index=block[h.index])
+                      for lab, h in g.groupby("configuration", sort=False)}  # fmt: skip
+            best = g.groupby("configuration", sort=False)[q["column"]].median().idxmin()
+            t = stats.compare_design(groups, best=best, tol=tol, ci=question)
+            for i, (name, value) in enumerate((("instance", instance), ("best", best), ("metric", metric), ("question", question))):
+                t.insert(i, name, value)
+            out.append(t)
     if not out:
-        return pd.DataFrame(columns=["instance", "best", *COLUMNS])
+        return pd.DataFrame(columns=["instance", "best", "metric", "question", *stats.DESIGN_COLUMNS])
     df = pd.concat(out, ignore_index=True)
-    _holm_over(df, df["a"] == "all")
+    _holm_over(df, (df["a"] == "all") & df["question"].astype(bool))
     return df
 
 

@@ -48,6 +48,16 @@ def num(x: float, fmt: str = ".3g") -> str:
     return format(x, fmt) if isinstance(x, (int, float, np.number)) and math.isfinite(x) else "n/a"
 
 
+def paren(*parts: str) -> str:
+    """`` (a; b)`` of the parts that say something, "" when none does.
+
+    >>> paren("Friedman", "", "p = 0.01"), paren("", "")
+    (' (Friedman; p = 0.01)', '')
+    """
+    said = [p for p in parts if p]
+    return f" ({'; '.join(said)})" if said else ""
+
+
 def pct(x: float) -> str:
     """A fraction as a percentage: 0.01 -> 1%."""
     return f"{x * 100:.3g}%" if math.isfinite(x) else "n/a"
@@ -178,10 +188,10 @@ def setting_sentence(name: str, tested: int, differ: int, test: str, p_max: floa
     where = f" on {differ} of {tested} instances" if tested > 1 else (" on its instance" if differ else "")
     if differ:
         best = f"; best: {top}" + (f" on {top_count} of them" if tested > 1 and top else "") if top else ""
-        s = f"{name} matters{where} ({test}; {p_text(p_max).replace('=', '<=')}){best}"
+        s = f"{name} matters{where}{paren(test, p_text(p_max).replace('=', '<=') if math.isfinite(p_max) else '')}{best}"
     else:
         any_ = f" on any of the {tested} instances" if tested > 1 else ""
-        s = f"{name} makes no significant difference{any_} ({test}; {p_text(p_min).replace('=', '>=')})"
+        s = f"{name} makes no significant difference{any_}{paren(test, p_text(p_min).replace('=', '>=') if math.isfinite(p_min) else '')}"
     return s + (f". {pooled}" if pooled else "") + "."
 
 
@@ -207,10 +217,11 @@ def within(t: dict) -> list[str]:
     """One sentence per instance with two or more configurations (:func:`within_sentence`)."""
     w = t["within"]
     out = []
-    n_inst = int(w["instance"].nunique()) if len(w) else 0
+    n_inst = int(w.loc[(w["a"] == "all") & w["question"].astype(bool), "instance"].nunique()) if len(w) else 0
     ratio = t["runs"].groupby(["instance", "configuration"])["final_over_ref"].median()
     by_lm = t["floors"].set_index("instance")["by_lm"]
     for instance, g in w.groupby("instance", sort=False):
+        g = g[g["question"].astype(bool)]
         pairs, omni = g[g["a"] != "all"], g[g["a"] == "all"]
         if not len(pairs):
             continue
@@ -229,7 +240,8 @@ def within(t: dict) -> list[str]:
         verdicts = [oriented(row, best)[1] for _, row in mine.iterrows()]
         counts = {v: verdicts.count(v) for v in (stats.BETTER, stats.EQUIVALENT, stats.WORSE, stats.UNDECIDED)}
         test = f"{pairs['test'].mode().iloc[0]}, Holm over the {count(len(pairs), 'pair')}; TOST for equivalence"
-        out.append(within_sentence(instance, setup, omnibus, best, value, counts, test, _closest(mine, best),
+        medians = t["runs"][t["runs"]["instance"] == instance].groupby("configuration")[q["column"]].median()
+        out.append(within_sentence(instance, setup, omnibus, best, value, counts, test, _closest(mine, best, medians),
                                    _limited(t, design, n, len(pairs), counts, unit)))  # fmt: skip
     return out
 
@@ -246,12 +258,12 @@ def _omnibus_text(omni: pd.DataFrame, n_inst: int) -> str:
     return f"{verdict} ({o['test']}, {stat}, {p_text(o['p_holm'])}{corr})."
 
 
-def _closest(mine: pd.DataFrame, best: str) -> str:
-    """The effect against the closest rival the best beats (the largest Holm p among them)."""
+def _closest(mine: pd.DataFrame, best: str, medians: pd.Series) -> str:
+    """The effect against the closest rival the best beats: the one with the lowest median."""
     beaten = [row for _, row in mine.iterrows() if oriented(row, best)[1] == stats.BETTER]
     if not beaten:
         return ""
-    row = max(beaten, key=lambda r: r["p_holm"])
+    row = min(beaten, key=lambda r: (medians.get(oriented(r, best)[0], math.inf), -r["p_holm"]))
     return f"Against the closest it beats, {oriented(row, best)[0]}: {effect_text(row, best)}, {p_text(row['p_holm'])} after Holm"
 
 

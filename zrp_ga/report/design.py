@@ -110,8 +110,8 @@ def _swept(tokens: list[tuple[str, ...]], by_config: set[str]) -> list[str]:
 
 def commands(runs: list[Run], report_dir: Path) -> list[dict[str, str]]:
     """The commands that made the runs, one per sweep (or single run), from Hydra's records:
-    {command, where (the folder it ran in, relative to ``report_dir``), runs}; a run made
-    without Hydra (the API) is counted under ``command`` "" ."""
+    {command (its paths relative to the folder it ran in), where (that folder, relative to
+    ``report_dir``), runs}; runs made without Hydra (the API) are counted under ``command`` ""."""
     by_sweep: dict[Any, list[Run]] = {}
     for r in runs:
         by_sweep.setdefault(r.sweep or r.path, []).append(r)
@@ -133,11 +133,12 @@ def commands(runs: list[Run], report_dir: Path) -> list[dict[str, str]]:
 
 
 def _relative(words: list[str], cwd: str) -> list[str]:
-    """Overrides naming an absolute path under ``cwd`` made relative to it."""
+    """Overrides naming an absolute path made relative to ``cwd`` (the folder the command ran
+    in): the page names no absolute path of the user's machine."""
     out = []
     for w in words:
         key, eq, value = w.partition("=")
-        if eq and value.startswith("/") and cwd and (value == cwd or value.startswith(cwd.rstrip("/") + "/")):
+        if eq and value.startswith("/") and cwd:
             w = f"{key}={os.path.relpath(value, cwd)}"
         out.append(w)
     return out

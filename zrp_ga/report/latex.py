@@ -75,7 +75,7 @@ def write(t: dict, out: Path) -> list[str]:
                              {"p_holm": "p (Holm)", "effect": "P(a<b)", "effect_lo": "CI low", "effect_hi": "CI high"})  # fmt: skip
     w = t["within"]
     if len(w):
-        best = w[(w["a"] != "all") & ((w["a"] == w["best"]) | (w["b"] == w["best"]))]
+        best = w[(w["a"] != "all") & ((w["a"] == w["best"]) | (w["b"] == w["best"])) & w["question"].astype(bool)]
         seen = [dict(instance=row["instance"], best=row["best"], verdict=oriented(row, row["best"])[1]) for _, row in best.iterrows()]
         counts = pd.DataFrame(seen).groupby(["instance", "best", "verdict"], sort=False).size().unstack(fill_value=0).reset_index()
         tables["within_instances"] = (counts, "The best configuration of each instance (lowest median) against every other: "

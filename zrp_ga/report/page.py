@@ -189,7 +189,7 @@ def _comparisons(t: dict) -> list[str]:
                   table(omni, "The omnibus test per instance (Friedman when the configurations share seeds, Kruskal-Wallis "
                         "otherwise; values within the tolerance tied), Holm-corrected over the instances; n: blocks or runs.",
                         names={"p_holm": "p (Holm)", "n_a": "n"}, max_rows=30),
-                  table(best_pairs[["instance", *_PAIR_COLS]], "The best configuration of each instance against every other: one "
+                  table(best_pairs[["instance", "metric", *_PAIR_COLS]], "The best configuration of each instance against every other: one "
                         "verdict per pair, from a's side (equivalent when every run is within the tolerance, else better or worse "
                         "when the difference test says so, else equivalent when TOST says so, else undecided); p-values "
                         f"Holm-corrected over all pairs of the instance; effect: P(a ends lower than b), with its 95% bootstrap "
@@ -248,7 +248,8 @@ def methods(t: dict, command: str, runs, where: Path) -> str:
     lines = []
     for c in cmds:
         if c["command"]:
-            run_in = f" (run in {html.escape(c['where'])}, relative to this page)" if c["where"] else ""
+            run_in = (f" (run in {html.escape(c['where'])}, relative to this page; the command's paths are relative to that folder)"
+                      if c["where"] else "")  # fmt: skip
             lines.append(f"<pre>{html.escape(c['command'])}</pre><p>made {conclusions.count(c['runs'], 'run')}{run_in}.</p>")
         else:
             lines.append(f"<p>{conclusions.count(c['runs'], 'run')} made without the command line (no Hydra record: the API).</p>")

@@ -45,7 +45,7 @@ DESIGN_COLUMNS = ["design", "test", "a", "b", "statistic", "p", "p_holm", "effec
                   "p_equivalence", "p_equivalence_holm", "verdict", "direction"]  # fmt: skip
 PAIRED, INDEPENDENT = "paired by block", "independent runs"
 RESAMPLES = 2000
-BATCH_NUMBERS = 4_000_000  # numbers a bootstrap batch holds at most (32 MB), whatever the sample sizes
+BATCH_NUMBERS = 1_000_000  # numbers a bootstrap batch resamples at once (8 MB a copy), whatever the sample sizes
 
 
 def holm(p: np.ndarray) -> np.ndarray:
