@@ -7,6 +7,7 @@ import math
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -167,3 +168,44 @@ def test_nothing_to_report_is_one_clear_line(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []
 
 
+
+
+def test_the_page_says_how_the_runs_were_made_without_absolute_paths(sweep, tmp_path):
+    import re
+    import shlex
+
+    out = tmp_path / "report"
+    report.write_report([sweep], out, formats=("png",), latex=True)
+    text = (out / "index.html").read_text()
+    # the command, from the jobs' records: the swept keys as comma lists, the rest as every job had them
+    commands = [shlex.split(html_unescape(m)) for m in re.findall(r"<pre>(zrp-ga -m .*?)</pre>", text)]
+    assert len(commands) == 1
+    words = commands[0]
+    assert words[:2] == ["zrp-ga", "-m"]
+    assert f"crossover={','.join(CROSSOVERS)}" in words and "seed=0,1,2" in words and "population.generations=6" in words
+    sweep_dir = next(w for w in words if w.startswith("hydra.sweep.dir="))
+    assert not sweep_dir.split("=", 1)[1].startswith("/")  # relative to the folder it ran in
+    assert not re.search(r"""[\s>("'=]/(tmp|work|home|root|Users)/""", text)  # no absolute path of this machine
+    # settings held fixed and varied, from the runs' resolved configs
+    fixed = text[text.index("Settings held fixed"):text.index("The report</h3>")]
+    varied = text[text.index("Settings varied"):text.index("Settings held fixed")]
+    assert "<td>population.mu</td><td>10</td>" in fixed and "algorithm.population.mu" not in text  # one name for one setting
+    assert ">seed<" in varied and ">crossover.op._target_<" in varied
+    # the version, with its commit when installed from a clone (this test runs from one)
+    commit = subprocess.run(["git", "-C", str(Path(report.__file__).parents[2]), "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True).stdout.strip()  # fmt: skip
+    if commit:
+        assert f"zrp_ga 0.1.0 (commit {commit}" in text
+    # LaTeX: the configurations' table as booktabs, the numbers those of summary.csv
+    tex = (out / "summary.tex").read_text()
+    assert tex.count("\\toprule") == tex.count("\\midrule") == tex.count("\\bottomrule") == 1
+    summary = pd.read_csv(out / "summary.csv")
+    for row in summary.itertuples():
+        line = next(ln for ln in tex.splitlines() if ln.startswith(row.configuration.replace("_", "\\_") + " & "))
+        assert f"& {row.runs} & {row.final_over_ref_median:.4g} &" in line
+
+
+def html_unescape(s):
+    import html
+
+    return html.unescape(s)

@@ -19,7 +19,6 @@ their own records) and the code's version.
 from __future__ import annotations
 
 import functools
-import json
 import os
 import shlex
 import subprocess
@@ -69,7 +68,7 @@ def seed_drew_instance(runs_df: pd.DataFrame) -> bool:
 def settings(runs: list[Run]) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The settings held fixed (key, value) and varied (key, values: how many and the first
     few, "(absent)" where a run has no such key), from the runs' resolved configs."""
-    flats = [{k: v for k, v in flatten(r.summary.get("config") or {}).items() if not k.startswith(IGNORED)} for r in runs]
+    flats = [_own(flatten(r.summary.get("config") or {})) for r in runs]
     keys = sorted(set().union(*flats)) if flats else []
     fixed, varied = [], []
     for k in keys:
@@ -80,6 +79,26 @@ def settings(runs: list[Run]) -> tuple[pd.DataFrame, pd.DataFrame]:
             shown = ", ".join(values[:6]) + (f", ... ({len(values)} values)" if len(values) > 6 else "")
             varied.append(dict(setting=k, values=shown))
     return pd.DataFrame(fixed, columns=["setting", "value"]), pd.DataFrame(varied, columns=["setting", "values"])
+
+
+def _own(flat: dict[str, str]) -> dict[str, str]:
+    """A run's flat config without bookkeeping keys and without the algorithm node's copies of
+    the top-level groups (``algorithm.population.mu`` when ``population.mu`` says the same)."""
+    out = {k: v for k, v in flat.items() if not k.startswith(IGNORED)}
+    return {k: v for k, v in out.items() if not (k.startswith("algorithm.") and out.get(k.removeprefix("algorithm.")) == v)}
+
+
+def relative_command(command: str, where: Path) -> str:
+    """The report's command with its absolute paths relative to the report's folder ``where``.
+
+    >>> relative_command("zrp-ga-report /data/sweep --out /data/report", Path("/data/report"))
+    'zrp-ga-report ../sweep --out .'
+    """
+    try:
+        words = shlex.split(command)
+    except ValueError:
+        return command
+    return shlex.join(os.path.relpath(w, where) if w.startswith("/") else w for w in words)
 
 
 def _hydra_record(run: Run) -> dict | None:
@@ -146,23 +165,20 @@ def _relative(words: list[str], cwd: str) -> list[str]:
 
 @functools.lru_cache(maxsize=1)
 def code_version() -> str:
-    """zrp_ga's version, with its commit (and "modified" when the tree differs from it) when it
-    is installed from a git clone (an editable install: pip's ``direct_url.json`` names the
-    folder), e.g. ``0.1.0 (commit f139c89)``."""
+    """zrp_ga's version, with its commit (and "modified" when the tree differs from it) when the
+    code runs from a git clone (an editable install, or the source tree), e.g. ``0.1.0 (commit
+    f139c89)``."""
+    import zrp_ga
+
     try:
-        dist = metadata.distribution("zrp_ga")
+        version = metadata.version("zrp_ga")
     except metadata.PackageNotFoundError:
-        return "?"
-    version = dist.version
-    try:
-        url = json.loads(dist.read_text("direct_url.json") or "{}")
-    except ValueError:
-        return version
-    folder = str(url.get("url", "")).removeprefix("file://")
-    if not (url.get("dir_info") or {}).get("editable") or not (Path(folder) / ".git").exists():
+        version = "?"
+    root = Path(zrp_ga.__file__).resolve().parents[1]
+    if not ((root / ".git").exists() and (root / "pyproject.toml").exists()):
         return version
     try:
-        git = ["git", "-C", folder]
+        git = ["git", "-C", str(root)]
         commit = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True, timeout=10, check=True)
         dirty = subprocess.run([*git, "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True, timeout=10)
     except (OSError, subprocess.SubprocessError):

@@ -260,7 +260,8 @@ def methods(t: dict, command: str, runs, where: Path) -> str:
         "<h3>Settings varied</h3>", table(varied, max_rows=30) if len(varied) else "<p>None.</p>",
         "<h3>Settings held fixed</h3>", table(fixed, f"{len(fixed)} settings of the runs' resolved configs, the same in every run.",
                                               max_rows=0) if len(fixed) else "<p>None recorded.</p>",
-        "<h3>The report</h3>", f"<pre>{html.escape(command)}</pre>",
+        "<h3>The report</h3>", f"<pre>{html.escape(study.relative_command(command, where))}</pre>",
+        "<p>(Its paths relative to this page.)</p>",
         f"<p>Report made with {html.escape(', '.join(f'{k} {v}' for k, v in versions.items()))}. The runs were made with:</p>",
         table(run_versions) if len(run_versions) else "<p>(their summary.json files name no versions)</p>",
     ])  # fmt: skip

@@ -27,7 +27,7 @@ from zrp_ga.report.common import ReportError
 from zrp_ga.run.directory import CONVERGENCE, INITIAL_POPULATION, MANIFEST, STATUS, SUMMARY
 
 MAX_BYTES = {SUMMARY: 64 << 20, CONVERGENCE: 256 << 20, STATUS: 1 << 20, INITIAL_POPULATION: 256 << 20,
-             MANIFEST: 1 << 30, "overrides.yaml": 1 << 20, "hydra.yaml": 16 << 20}  # a file larger than this is not a run's (bounded memory)
+             MANIFEST: 1 << 30, "overrides.yaml": 1 << 20, "hydra.yaml": 16 << 20, "best_params.csv": 64 << 20}  # a file larger than this is not a run's (bounded memory)
 
 Array = np.ndarray
 IGNORED_KEYS = ("hydra", "experiment", "progress", "checkpoint_every")

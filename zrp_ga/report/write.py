@@ -164,14 +164,19 @@ def _friedman_line(t: dict) -> str:
 
 
 def _paper_tables(run: Run, stage: Path) -> list[str]:
-    """Tables 2 and 3 of one run; the files that could not be read."""
+    """Tables 2 and 3 of one run; the files that could not be read (a FIFO or device among them:
+    checked to be regular files first)."""
+    import io
+
     import pandas as pd
+
+    from zrp_ga.report.runs import LeftOut, read_text
 
     missing = []
     for name, source in (("table2_initial_population", directory.INITIAL_POPULATION), ("table3_best_params", directory.BEST_PARAMS)):
         try:
-            (stage / f"{name}.md").write_text(markdown(pd.read_csv(run.path / source)))
-        except (OSError, ValueError, pd.errors.ParserError):
+            (stage / f"{name}.md").write_text(markdown(pd.read_csv(io.StringIO(read_text(run.path / source)))))
+        except (OSError, ValueError, LeftOut, pd.errors.ParserError):
             missing.append(str(run.path / source))
     return missing
 
