@@ -41,3 +41,28 @@ def fake_run(path: Path, instance: str, algorithm: str, rows: list[tuple[int, fl
     (path / "summary.json").write_text(json.dumps(summary))
     (path / "status.json").write_text('{"status": "done"}')
     return path
+
+
+def many(root: Path, runs: int, configurations: int = 5, generations: int = 60, seed: int = 0) -> None:
+    """``runs`` made-up finished runs under ``root``: ``configurations`` crossovers on one
+    instance, each run its own seed (no two configurations share one: the independent-runs
+    design, whose effect sizes need the most memory), a GA-like trace of ``generations`` rows."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    names = ["blend", "sbx", "two_point", "one_point", "uniform", "x5", "x6", "x7", "x8", "x9"][:configurations]
+    for i in range(runs):
+        cx = names[i % configurations]
+        cfg = json.loads(json.dumps(ALGORITHMS["ga"]))
+        cfg["crossover"]["op"]["_target_"] = f"zrp_ga.operators.crossover.{cx}"
+        start, end = 10.0 * (1 + rng.random()), 1.0 + 0.1 * (i % configurations) + 0.5 * rng.random()
+        best = start * (end / start) ** (np.arange(generations) / (generations - 1))
+        rows = [(50 * (g + 1), float(b)) for g, b in enumerate(best)]
+        fake_run(root / f"run{i:05d}", "inst", "ga", rows, floor=1.0, seed=i, config=cfg, nominal=20.0,
+                 choices={"algorithm": "ga", "crossover": cx}, validation=float(0.5 + rng.random()))  # fmt: skip
+
+
+if __name__ == "__main__":  # python tests/report_fakes.py DIR RUNS: made-up runs to measure the report on
+    import sys
+
+    many(Path(sys.argv[1]), int(sys.argv[2]))

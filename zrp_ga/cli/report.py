@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--latex", action="store_true", help="also write the headline tables as booktabs .tex files")
     p.add_argument("--only", action="append", default=[], metavar="KEY=VALUE",
                    help="keep only the runs given this setting (repeatable), e.g. --only refine=none")
-    p.add_argument("--formats", default=",".join(FORMATS), help="figure formats (default png,pdf,svg; none: no figures)")
+    p.add_argument("--formats", default=",".join(FORMATS), help="figure formats of the files (default png,pdf; svg too if wanted; none: no figures)")
     p.add_argument("--style", default="paper", choices=("paper", "screen"),
                    help="figure files for a paper (3.5 in a column, 7.16 in a page, 8-9 pt; the default) or for a screen "
                         "(7 in, 10 pt); the page always shows screen-sized figures")

@@ -99,20 +99,33 @@ def reference_sentence(a: dict | None) -> list[str]:
     if a.get("round_off"):
         often = ""
     elif a["within"] == 0:
-        often = (f"; none of its runs comes within {pct(a['tol'])} of LM's cost in its {num(a['nevals'], ',.0f')} evaluations"
-                 f" (median), which LM takes {num(a['lm_evals'], ',.0f')}" if math.isfinite(a.get("lm_evals", math.nan)) else
-                 f"; none of its runs comes within {pct(a['tol'])} of LM's cost")  # fmt: skip
+        often = (f"; none of its runs comes within {pct(a['tol'])} of LM's cost in its {num(a['nevals'], ',.0f')} evaluations, "
+                 f"where LM takes {num(a['lm_evals'], ',.0f')} (median over the instances)" if math.isfinite(a.get("lm_evals", math.nan))
+                 else f"; none of its runs comes within {pct(a['tol'])} of LM's cost")  # fmt: skip
     else:
         often = (f"; {a['within']} of its {count(a['runs'], 'run')} come within {pct(a['tol'])} of LM's cost, in a median of "
                  f"{num(a['evals'], ',.0f')} evaluations against {lm_evals}")  # fmt: skip
-    verdict = {stats.WORSE: "worse than LM", stats.BETTER: "better than LM", stats.EQUIVALENT: "equivalent to LM"}.get(a.get("verdict"), "")
-    tail = f" Verdict: {verdict} ({a['test']}, {p_text(a['p'])})." if verdict else ""
+    verdict = {stats.WORSE: "worse than LM", stats.BETTER: "better than LM", stats.EQUIVALENT: "equivalent to LM",
+               stats.UNDECIDED: "undecided against LM"}.get(a.get("verdict"), "")  # fmt: skip
+    tail = f" Verdict: {verdict}{paren(*_decided_by(a))}." if verdict else ""
     first = f"Against Levenberg-Marquardt, the reference{on}: the best configuration, {a['best']}, {cost}{val}{often}.{tail}"
     rest = a["all_runs"] - a["runs"]
     if rest <= 0 or a.get("round_off"):
         return [first]
-    return [first, f"Of all {count(a['all_runs'], 'run')} besides LM's, {a['all_within_11'] or 'none'} come within 1.1 x LM's cost "
-                   f"(the closest: {num(a['closest'])} x)."]  # fmt: skip
+    return [first, f"Of the {count(a['all_runs'], 'run')} of every configuration but the references, {a['all_within_11'] or 'none'} "
+                   f"come within 1.1 x LM's cost (the closest: {num(a['closest'])} x)."]  # fmt: skip
+
+
+def _decided_by(a: dict) -> tuple[str, ...]:
+    """The test that gave a verdict, and its p: every run within the tolerance, the difference
+    test (better, worse), TOST (equivalent), or both (undecided)."""
+    tost = f"TOST at +-{pct(a.get('tol', math.nan))}, {p_text(a.get('p_equivalence', math.nan))}"
+    if a.get("tied"):
+        return (stats.ALL_TIED,)
+    if a.get("verdict") == stats.EQUIVALENT:
+        return (tost,)
+    test = f"{a['test']}, {p_text(a.get('p', math.nan))}" if a.get("test") else ""
+    return (test, tost) if a.get("verdict") == stats.UNDECIDED else (test,)
 
 
 def tied_sentence(tied: list[str], n_instances: int, at_floor: bool, tol: float) -> list[str]:
@@ -175,7 +188,8 @@ def across_sentence(f: dict | None, note: str, group: str = "") -> list[str]:
                 f"{num(f['statistic'])}, {p_text(f['p'])}): the data support no ranking."]  # fmt: skip
     within_cd = int((ranks <= ranks.iloc[0] + f["cd"]).sum()) - 1
     return [f"{lead} the ranks differ (Friedman, chi2 = {num(f['statistic'])}, {p_text(f['p'])}). Best mean rank: {best} "
-            f"({num(ranks.iloc[0], '.2f')} of {f['configurations']}); {count(within_cd, 'other configuration')} lie within Nemenyi's "
+            f"({num(ranks.iloc[0], '.2f')} of {f['configurations']}); {count(within_cd, 'other configuration')} "
+            f"{'lies' if within_cd == 1 else 'lie'} within Nemenyi's "
             f"critical difference ({num(f['cd'], '.2f')}) of it, which the test cannot tell apart from it."]  # fmt: skip
 
 
@@ -286,7 +300,7 @@ def factors(t: dict) -> list[str]:
         if not len(per):  # two values: the one pair per instance
             per = g[(g["instance"] != "all") & (g["a"] != "all")]
         sig = per[per["verdict"].isin(["differ", stats.BETTER, stats.WORSE])]
-        name = {"refine": "the pseudo-inverse step", "algorithm": "the algorithm"}.get(key, describe(key, "\0").replace("\0", "").strip())
+        name = setting_name(key)
         design = str(g["design"].iloc[0]) if len(g) else ""
         blocks = "paired by the other settings and the seed" if design == stats.PAIRED else "independent runs"
         test = f"{per['test'].mode().iloc[0] if len(per) else 'no test'}, {blocks}" + (", Holm over the instances" if len(per) > 1 else "")
@@ -310,8 +324,14 @@ def _pooled(g: pd.DataFrame, t: dict) -> str:
     mine = pooled[(pooled["a"] == best) | (pooled["b"] == best)]
     row = mine.loc[mine["p"].idxmax()]
     other, verdict, *_ = oriented(row, best)
-    return (f"Across instances (final / f_ref, median: {meds}): {best} is {verdict} against {other}, {effect_text(row, best)}, "
+    relation = {stats.BETTER: "better than", stats.WORSE: "worse than", stats.EQUIVALENT: "equivalent to"}.get(verdict, "undecided against")
+    return (f"Across instances (final / f_ref, median: {meds}): {best} is {relation} {other}, {effect_text(row, best)}, "
             f"{p_text(row['p_holm'])}")  # fmt: skip
+
+
+def setting_name(key: str) -> str:
+    """A setting in words: ``refine`` -> "the pseudo-inverse step", ``population.mu`` -> "mu"."""
+    return {"refine": "the pseudo-inverse step", "algorithm": "the algorithm"}.get(key, describe(key, "\0").replace("\0", "").strip())
 
 
 def interactions(t: dict) -> list[str]:
@@ -321,11 +341,19 @@ def interactions(t: dict) -> list[str]:
     for (a, b), g in ix.groupby(["setting_a", "setting_b"], sort=False):
         found = g[g["found"]]
         if len(found):
-            out.append(f"{describe(a, chr(0)).replace(chr(0), '').strip().capitalize()} and {describe(b, chr(0)).replace(chr(0), '').strip()} "
-                       f"interact on {len(found)} of {count(len(g), 'instance')} ({', '.join(found['instance'])}; aligned rank "
-                       f"transform, Holm over {count(len(ix), 'test')}; {p_text(float(found['p_holm'].max())).replace('=', '<=')}): "
-                       f"the best {a} depends on the {b} there (the interaction figure).")  # fmt: skip
+            na, nb = setting_name(a), setting_name(b)
+            out.append(f"{na[:1].upper() + na[1:]} and {nb} interact on {len(found)} of {count(len(g), 'instance')} "
+                       f"({', '.join(found['instance'])}; aligned rank transform, Holm over {count(len(ix), 'test')}; "
+                       f"{p_text(float(found['p_holm'].max())).replace('=', '<=')}): the effect of {na} depends on {nb} there "
+                       "(the interaction figure).")  # fmt: skip
     return out
+
+
+def _without_reference(t: dict) -> list[str]:
+    """Instances whose f* is the best run itself: no floor record, no LM run, not round-off."""
+    f, ref = t["floors"], t.get("reference")
+    with_lm = set(ref.loc[ref["reference"] == "Levenberg-Marquardt", "instance"]) if ref is not None and len(ref) else set()
+    return [i for i, by_lm, off in zip(f["instance"], f["by_lm"], f["round_off"]) if not by_lm and not off and i not in with_lm]
 
 
 def sentences(t: dict) -> dict[str, list[str]]:
@@ -336,7 +364,8 @@ def sentences(t: dict) -> dict[str, list[str]]:
     seeds = int(t["runs"]["seed"].nunique()) if t.get("seed_drew_instance") else 0
     first = (reference_sentence(t.get("answer")) + tied_sentence(tied, len(asked), all(asked[i]["at_floor"] for i in tied),
              float(floors["tolerance"].min()) if len(floors) else math.nan)
-             + no_reference_sentence(list(floors.loc[~floors["by_lm"], "instance"])) + seed_instance_sentence(seeds)
+             + no_reference_sentence(_without_reference(t))
+             + seed_instance_sentence(seeds)
              + groups_sentence(sizes))  # fmt: skip
     groups = [f for f in t.get("friedman_groups", []) if f["result"] is not None or len(sizes) == 1]
     across = []

@@ -84,14 +84,18 @@ def draw(runs: list[Run], t: dict, stage: Path, formats: tuple[str, ...], rule: 
              if s is not None]  # fmt: skip
     out = []
     for spec in specs:
+        reuse = page and spec["name"] in WIDE and style == "paper"  # a page-wide print figure is screen-sized already
         with figures.style(style):
-            spec["draw"](stage, formats, False)
-        svg = ""
-        if page:
+            svg = spec["draw"](stage, formats, reuse)
+        if page and not reuse:
             with figures.style("screen"):
                 svg = spec["draw"](stage, (), True)
-        out.append(dict(name=spec["name"], title=spec["title"], caption=spec["caption"], alt=spec["alt"], svg=svg))
+        out.append(dict(name=spec["name"], title=spec["title"], caption=spec["caption"], alt=spec["alt"], svg=svg,
+                        scale=1.5 if reuse else 4 / 3))  # fmt: skip
     return out, shown
+
+
+WIDE = ("ecdf_by_instance", "main_effects", "critical_difference")  # drawn a page wide: on screen as they are, enlarged
 
 
 def _spec(name: str, title: str, caption: str, alt: str, draw: Callable) -> dict:

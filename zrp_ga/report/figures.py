@@ -10,7 +10,8 @@ Print and screen. ``paper`` sizes a figure to a column (3.5 in wide) or to a pag
 bounding box; the layout engine fits the labels and the legend inside). ``screen`` draws the
 same figures for the page, 7 in (10 in wide) with 10 pt text. Lines are told apart without
 colour: the Okabe-Ito palette (Okabe and Ito 2008, safe for the common colour-vision
-deficiencies) with a marker and a dash pattern per line; the reference (LM) is black.
+deficiencies; its yellow replaced by Tol's wine) with a marker and a dash pattern per line; the
+reference (LM) is black.
 Legends are compact, below the axes, one short label a line
 (:func:`zrp_ga.report.labels.short`). Each figure's layout is computed once and reused for
 every format."""
@@ -29,7 +30,7 @@ import matplotlib
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
-from matplotlib.ticker import FuncFormatter, MaxNLocator
+from matplotlib.ticker import FuncFormatter, MaxNLocator, NullFormatter
 
 from zrp_ga.report.runs import Run
 
@@ -47,9 +48,10 @@ STYLES = {
 }  # fmt: skip
 _STYLE = {"name": "paper"}
 MAX_LINES = 8  # configurations drawn in one axes before only the best are
-# Okabe and Ito's colours without black (the reference's) and with grey last: blue, vermillion,
-# bluish green, reddish purple, orange, sky blue, yellow, grey.
-PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#F0E442", "#7F7F7F")
+# Okabe and Ito's colours without black (the reference's) and without yellow, which fades on white
+# paper (under tritanopia most of all): blue, vermillion, bluish green, reddish purple, orange, sky
+# blue; then Tol's wine and a grey.
+PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#882255", "#7F7F7F")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 DASHES = ("-", "--", "-.", ":")
 REFERENCE = dict(color="black", ls=(0, (6, 2)), marker="*", lw=1.6)
@@ -129,16 +131,30 @@ def legend_below(fig: Figure, ax, title: str | None = None) -> None:
                    labelspacing=0.25, borderaxespad=0.2, columnspacing=1.0, handletextpad=0.5)  # fmt: skip
 
 
+def _plain(v: float, _pos=None) -> str:
+    """A tick label without mathtext: 0.01, 1, 100, 1,000, 1e+06 (typesetting 10^k as math costs
+    a parse per label and per draw)."""
+    if v <= 0 or not math.isfinite(v):
+        return ""
+    return f"{v:,.0f}" if 1 <= v < 1e5 and v == round(v) else f"{v:g}"
+
+
+def log_axis(ax, which: str = "x") -> None:
+    """A log axis labelled with plain numbers at its decades (no minor labels)."""
+    axis = ax.xaxis if which == "x" else ax.yaxis
+    (ax.set_xscale if which == "x" else ax.set_yscale)("log")
+    axis.set_major_formatter(FuncFormatter(_plain))
+    axis.set_minor_formatter(NullFormatter())
+
+
 def _log_if_wide(ax, values: list[float]) -> None:
     """A log y axis when the values span more than a decade; its labels as plain numbers (2, 3,
     5, 10 rather than 2 x 10^0) when they span less than three."""
     v = np.asarray([x for x in values if x > 0 and math.isfinite(x)])
     if len(v) and v.max() / v.min() > 10:
-        ax.set_yscale("log")
+        log_axis(ax, "y")
         if v.max() / v.min() < 1000:
-            plain = FuncFormatter(lambda y, _: f"{y:g}")
-            ax.yaxis.set_major_formatter(plain)
-            ax.yaxis.set_minor_formatter(FuncFormatter(lambda y, _: f"{y:g}" if str(f"{y:g}")[0] in "25" else ""))
+            ax.yaxis.set_minor_formatter(FuncFormatter(lambda y, _: _plain(y) if f"{y:g}"[0] in "25" else ""))
 
 
 def target_lines(ax, lines: dict[str, float]) -> None:
@@ -225,19 +241,26 @@ def convergence_by_configuration(bands: dict[str, tuple[np.ndarray, np.ndarray, 
     fig = Figure(figsize=(width(), height([*names.values(), *(["LM, the reference"] if reference else [])])), layout="constrained")
     ax = fig.subplots()
     for k, ((label, (grid, q, _)), st) in enumerate(zip(bands.items(), styles(len(bands)))):
-        ax.plot(grid, q[1], label=names[label], markevery=0.1, **st)
+        ax.plot(grid, q[1], label=names[label], markevery=_every(grid, 9), **st)
         if k == 0 or len(bands) <= 4:  # more bands would hide each other: the best's only
             ax.fill_between(grid, q[0], q[2], color=st["color"], alpha=0.15, lw=0)
     if reference is not None:
         ax.plot([reference[0]], [reference[1]], ls="none", ms=9, label="LM, the reference",
                 **{k: v for k, v in REFERENCE.items() if k not in ("ls", "lw")})  # fmt: skip
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    log_axis(ax, "x")
+    log_axis(ax, "y")
     target_lines(ax, lines)
     ax.set_xlabel("evaluations")
     ax.set_ylabel(ylabel)
     legend_below(fig, ax)
     return save(fig, out, "convergence_by_configuration", formats, page)
+
+
+def _every(x: np.ndarray, n: int = 7) -> np.ndarray:
+    """About ``n`` marker positions, evenly spaced in log x (computed once, not at each draw)."""
+    lx = np.log10(np.maximum(np.asarray(x, dtype=float), 1e-300))
+    want = np.linspace(lx[0], lx[-1], n)
+    return np.unique(np.clip(np.searchsorted(lx, want), 0, len(x) - 1))
 
 
 def _ecdf_axes(ax, curves_: pd.DataFrame, shown: list[str], ends: dict[str, float], legend: bool, names: dict[str, str],
@@ -249,12 +272,12 @@ def _ecdf_axes(ax, curves_: pd.DataFrame, shown: list[str], ends: dict[str, floa
             continue
         end = max(ends.get(label, 0.0), c["evaluations"].max())
         x, y = np.r_[c["evaluations"], end], np.r_[c["fraction"], c["fraction"].iloc[-1]]
-        ax.step(x, y, where="post", label=names.get(label, label) if legend else None, markevery=0.12, **st)
+        ax.step(x, y, where="post", label=names.get(label, label) if legend else None, markevery=_every(x), **st)
         ax.plot([end], [y[-1]], "x", color=st["color"], ms=6)
     if reference is not None and math.isfinite(reference):
         ax.step([min(left, reference / 2), reference, max(right, reference * 2)], [0, 1, 1], where="post", color="black",
                 ls=REFERENCE["ls"], lw=REFERENCE["lw"], label="LM, the reference" if legend else None)  # fmt: skip
-    ax.set_xscale("log")
+    log_axis(ax, "x")
     ax.set_ylim(-0.02, 1.02)
 
 
@@ -324,7 +347,7 @@ def boxplot(data: dict[str, np.ndarray], xlabel: str, reference: float | None, r
             ax.plot(data[n], i + rng.uniform(-0.18, 0.18, len(data[n])), "o", ms=2.2, color="k", alpha=0.6, mec="none")
     ax.set_yticks(range(1, len(names) + 1), ticks)
     if log:
-        ax.set_xscale("log")
+        log_axis(ax, "x")
     if reference is not None and math.isfinite(reference):
         ax.axvline(reference, color="black", ls=REFERENCE["ls"], lw=1.0)
         ax.annotate(reference_label, (reference, 1), xycoords=("data", "axes fraction"), va="bottom", ha="center", fontsize="small")

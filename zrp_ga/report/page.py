@@ -23,6 +23,7 @@ from zrp_ga.report.common import ALPHA
 CSS = """
 body{font:15px/1.5 system-ui,-apple-system,"Segoe UI",Roboto,"DejaVu Sans",sans-serif;color:#1b1b1b;margin:0;background:#fafafa}
 main{max-width:1100px;margin:0 auto;padding:1.5em 2em 4em;background:#fff}
+@media (max-width:600px){main{padding:1em .8em 3em}body{font-size:14px}}
 h1{font-size:1.6em;margin:.2em 0 .1em}h2{font-size:1.25em;margin-top:1.8em;border-bottom:1px solid #ddd;padding-bottom:.2em}
 h3{font-size:1.05em;margin:1.2em 0 .3em}
 .lede{color:#444;margin-top:0}
@@ -97,16 +98,17 @@ def _mark(sentence: str) -> str:
     return re.sub(r"\b(the configurations differ|the ranks differ|matters|better than|worse than)\b", r'<span class="sig">\1</span>', text)
 
 
-def _svg(svg: str, name: str, title: str, alt: str) -> str:
+def _svg(svg: str, name: str, title: str, alt: str, scale: float = 4 / 3) -> str:
     """An SVG of matplotlib's (drawn in the screen style), ready to sit inline: its ids prefixed
-    with the figure's name (two figures never share an id), drawn at its size (1 pt = 4/3 px, a
-    7 in figure 672 px wide) but never wider than the page, described for screen readers by
+    with the figure's name (two figures never share an id), drawn at ``scale`` px a point (its
+    size: 4/3, a 7 in figure 672 px wide; a page-wide print figure 1.5) but never wider than the
+    page, described for screen readers by
     its title and ``alt`` (what it shows, in words: ``<title>`` and ``<desc>``)."""
     m = re.search(r'<svg[^>]*\bwidth="([0-9.]+)pt"', svg)
     if m:
         svg = re.sub(r'(<svg[^>]*?)\s(width|height)="[0-9.]+pt"', r"\1", svg, count=1)
         svg = re.sub(r'(<svg[^>]*?)\s(width|height)="[0-9.]+pt"', r"\1", svg, count=1)
-        svg = svg.replace("<svg ", f'<svg style="width:min(100%,{float(m.group(1)) * 4 / 3:.0f}px)" ', 1)
+        svg = svg.replace("<svg ", f'<svg style="width:min(100%,{float(m.group(1)) * scale:.0f}px)" ', 1)
     svg = re.sub(r'\bid="([^"]+)"', lambda m: f'id="{name}-{m.group(1)}"', svg)
     svg = re.sub(r'url\(#([^)]+)\)', lambda m: f"url(#{name}-{m.group(1)})", svg)
     svg = re.sub(r'href="#([^"]+)"', lambda m: f'href="#{name}-{m.group(1)}"', svg)
@@ -283,7 +285,7 @@ def write(path, t: dict, figs: list[dict], runs, command: str, paths: list[str],
         concl.append(f"<p>{html.escape(t['cd_note'])}.</p>")
     fig_html = []
     for n, fig in enumerate(figs, start=1):
-        fig_html.append(f'<figure id="{fig["name"]}">{_svg(fig["svg"], fig["name"], fig["title"], fig["alt"])}<figcaption><b>Figure {n}. '
+        fig_html.append(f'<figure id="{fig["name"]}">{_svg(fig["svg"], fig["name"], fig["title"], fig["alt"], fig.get("scale", 4 / 3))}<figcaption><b>Figure {n}. '
                         f'{html.escape(fig["title"])}.</b> {html.escape(fig["caption"])} <i>In words:</i> {html.escape(fig["alt"])}'
                         "</figcaption></figure>")  # fmt: skip
     made = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")

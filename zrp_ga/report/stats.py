@@ -371,7 +371,9 @@ def smallest_p(design: str, n: int) -> float:
     >>> smallest_p(PAIRED, 3), round(smallest_p(INDEPENDENT, 3), 3)
     (0.25, 0.1)
     """
-    return 2.0 / 2**n if design == PAIRED else 2.0 / math.comb(2 * n, n)
+    if design == PAIRED:
+        return 2.0 * 2.0**-n
+    return 2.0 * math.exp(2 * math.lgamma(n + 1) - math.lgamma(2 * n + 1))  # 2 / C(2n, n), without an integer too large for a float
 
 
 def friedman(scores: pd.DataFrame, alpha: float = ALPHA, tol: pd.Series | float = 0.0) -> dict:

@@ -90,16 +90,17 @@ def _summary(runs_df: pd.DataFrame, ert_all: pd.DataFrame, rule: TargetRule) -> 
         row.update(auc_median=quartiles(g.auc)[0], auc_budget=float(g.auc_budget.iloc[0]),
                    evals_to_common_median=quartiles(g[compare.EVALS])[0])
         out.append(row)
-    return _best_first(pd.DataFrame(out), float(runs_df["tol"].max()))
+    return _best_first(pd.DataFrame(out), float(runs_df["tol"].max()), f"ert_{rule.primary()}")
 
 
-def _best_first(summary: pd.DataFrame, tol: float) -> pd.DataFrame:
+def _best_first(summary: pd.DataFrame, tol: float, ert: str) -> pd.DataFrame:
     """The configurations best first: by median final / f_ref, medians within the tolerance
     ``tol`` tied (:func:`zrp_ga.report.stats.snap`), then by the median evaluations to the cost
-    every run reached (instances where all are tied), then by the median final cost."""
+    every run reached (instances where all are tied), then by the expected running time to the
+    primary target (column ``ert``), then by the median final / f_ref itself."""
     key = summary.assign(_r=stats.snap(summary["final_over_ref_median"].to_numpy(), tol),
-                         _e=summary["evals_to_common_median"].fillna(np.inf))  # fmt: skip
-    key = key.sort_values(["_r", "_e", "final_cost_median"], kind="stable", na_position="last")
+                         _e=summary["evals_to_common_median"].fillna(np.inf), _t=summary.get(ert, pd.Series(np.inf, index=summary.index)).fillna(np.inf))  # fmt: skip
+    key = key.sort_values(["_r", "_e", "_t", "final_over_ref_median"], kind="stable", na_position="last")
     return summary.loc[key.index].reset_index(drop=True)
 
 

@@ -31,7 +31,7 @@ STEMS = ("targets", "summary", "per_instance", "ert", "ecdf", "fixed_budget", "r
          "validation_error_boxplot", "critical_difference", "table2_initial_population", "table3_best_params",
          "ranks_nemenyi", "index", "ecdf_by_instance", "within_instances", "factors_by_instance", "ecdf_targets", "conclusions",
          "reference", "interactions", "main_effects", "evaluations_boxplot")  # fmt: skip
-FORMATS = ("png", "pdf", "svg")
+FORMATS = ("png", "pdf")  # the page holds the figures as SVG itself
 IOH = "ioh"
 
 
