@@ -253,11 +253,17 @@ def within(t: dict) -> list[str]:
         mine = pairs[(pairs["a"] == best) | (pairs["b"] == best)]
         verdicts = [oriented(row, best)[1] for _, row in mine.iterrows()]
         counts = {v: verdicts.count(v) for v in (stats.BETTER, stats.EQUIVALENT, stats.WORSE, stats.UNDECIDED)}
-        test = f"{pairs['test'].mode().iloc[0]}, Holm over the {count(len(pairs), 'pair')}; TOST for equivalence"
+        test = f"{_test_name(pairs)}, Holm over the {count(len(pairs), 'pair')}; TOST for equivalence"
         medians = t["runs"][t["runs"]["instance"] == instance].groupby("configuration")[q["column"]].median()
         out.append(within_sentence(instance, setup, omnibus, best, value, counts, test, _closest(mine, best, medians),
                                    _limited(t, design, n, len(pairs), counts, unit)))  # fmt: skip
     return out
+
+
+def _test_name(rows: pd.DataFrame) -> str:
+    """The test the rows ran (the rank test where some pairs were tied on their face)."""
+    tests = rows.loc[rows["test"] != stats.ALL_TIED, "test"]
+    return str(tests.mode().iloc[0]) if len(tests) else stats.ALL_TIED
 
 
 def _omnibus_text(omni: pd.DataFrame, n_inst: int) -> str:
@@ -303,9 +309,14 @@ def factors(t: dict) -> list[str]:
         name = setting_name(key)
         design = str(g["design"].iloc[0]) if len(g) else ""
         blocks = "paired by the other settings and the seed" if design == stats.PAIRED else "independent runs"
-        test = f"{per['test'].mode().iloc[0] if len(per) else 'no test'}, {blocks}" + (", Holm over the instances" if len(per) > 1 else "")
+        test = f"{_test_name(per) if len(per) else 'no test'}, {blocks}" + (", Holm over the instances" if len(per) > 1 else "")
         best_by = sig.groupby("best").size().sort_values(ascending=False) if len(sig) else pd.Series(dtype=int)
         top = str(best_by.index[0]) if len(best_by) else ""
+        if len(per) and (per["verdict"] == stats.EQUIVALENT).all():
+            where = f" on every one of the {len(per)} instances" if len(per) > 1 else ""
+            out.append(f"{name[:1].upper() + name[1:]} makes no difference{where}: its values are equivalent, every run within the "
+                       "tolerance of the runs it is compared with.")  # fmt: skip
+            continue
         out.append(setting_sentence(name, len(per), len(sig), test, float(sig["p_holm"].max()) if len(sig) else math.nan,
                                     float(per["p_holm"].min()) if len(per) else math.nan, top,
                                     int(best_by.iloc[0]) if len(best_by) else 0, _pooled(g, t)))  # fmt: skip
