@@ -139,7 +139,8 @@ def factorial(runs_df: pd.DataFrame, keys: list[str], asked: dict[str, dict]) ->
         having = runs_df[runs_df[key] != ""]
         others = [k for k in keys if k != key]
         per_setting = []
-        for instance, g in [*having.groupby("instance", sort=False), ("all", having)]:
+        scopes = [*having.groupby("instance", sort=False)] + ([("all", having)] if having["instance"].nunique() > 1 else [])
+        for instance, g in scopes:  # across instances only where there are several: else it is the one instance again
             q = asked.get(instance, q_all)
             for v, h in g.groupby(key, sort=True):
                 medians.append(dict(setting=key, instance=instance, value=describe(key, str(v)), runs=len(h),
