@@ -1,6 +1,7 @@
 """Write docs/bad_inputs.md: every class of bad input, an example command, and the one line the
 program prints for it, by running the cases of tests/test_bad_inputs.py and
-tests/test_bad_inputs_more.py (``zrp-ga``) and a few of ``zrp-ga-report``.
+tests/test_bad_inputs_more.py (``zrp-ga``), a few of ``zrp-ga-report``, and those of
+tests/test_compensation_inputs.py (``zrp-ga-compensate`` and ``zrp_ga.compensate``).
 
     python experiments/bad_inputs.py
 """
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -81,6 +83,36 @@ def _run_directory_rows(folder: Path) -> list[tuple[str, str, str, str]]:
     return [(k, w, c, line.replace(str(folder), "DIR")) for k, w, c, line in rows]
 
 
+def _compensation_rows(folder: Path) -> list[tuple[str, str, str, str]]:
+    """zrp-ga-compensate's cases, and zrp_ga.compensate called from Python with bad arguments."""
+    module = _cases("test_compensation_inputs")
+    rows = []
+    for k, case in enumerate(module.CASES):
+        where = folder / str(k)
+        err, code = module.run_case(case, where)
+        args = " ".join([*(f"{a}={b}" for a, b in case.env), "zrp-ga-compensate",
+                         *(shlex.quote(a.replace("{dir}", "DIR")) for a in case.args)])  # fmt: skip
+        rows.append((case.kind, case.what, args, f"{err.strip().replace(str(where), 'DIR')} (exit {code})"))
+    for what, settings, error, _ in module.API_CASES:
+        try:
+            module.call_api(settings)
+            said = "no error"
+        except error as exc:
+            said = f"{type(exc).__name__}: {exc}"
+        shown = ", ".join(f"{k}={_short(v)}" for k, v in settings.items())
+        rows.append(("Python argument", what, f"zrp_ga.compensate(..., {shown})", said.replace(str(ROOT), "REPO")))
+    return rows
+
+
+def _short(v) -> str:
+    """A value as a call shows it: arrays by shape."""
+    import numpy as np
+
+    if isinstance(v, np.ndarray):
+        return f"<array {v.shape}>"
+    return repr(v) if not isinstance(v, Path) else f"Path({v.name!r})"
+
+
 def main() -> None:
     cases = [(module, case) for module in (_cases(), _cases("test_bad_inputs_more")) for case in module.CASES]
     rows = []
@@ -98,15 +130,23 @@ def main() -> None:
         runs = Path(tmp) / "runs"
         runs.mkdir()
         rows += _run_directory_rows(runs)
+        comp = Path(tmp) / "compensation"
+        comp.mkdir()
+        rows += _compensation_rows(comp)
     lines = ["# Bad input and what the program says", "",
              "Every input the programs read is checked before any work: a bad one stops `zrp-ga` with one line "
              "on stderr, exit code 2, and no run directory (a report leaves out a damaged run by name and goes on). "
              "Every file read must be a regular file (a FIFO, device or socket is refused, a symlink loop named as "
-             "one). A run that would not fit the memory this machine has available is refused with the estimate "
-             "and the setting to lower (`zrp_ga.run.budget`; the environment variable `ZRP_GA_MEMORY`, e.g. `8G`, "
-             "replaces the available amount); one estimated to take more than ten minutes is announced. "
+             "one). A run, or a sweep's largest job (once, before any job starts), that would not fit the memory "
+             "this process may use (the least of the machine's available memory, `ulimit -v` and `-d`, and the "
+             "cgroup's memory limit of a container or cluster job) is refused with the estimate, the limit that "
+             "binds and the setting to lower (`zrp_ga.run.budget`; the environment variable `ZRP_GA_MEMORY`, e.g. "
+             "`8G`, replaces the limits); one estimated to take more than ten minutes is announced. "
              "`DIR` stands for the folder of the example. Written by `python experiments/bad_inputs.py` from the "
-             "cases of `tests/test_bad_inputs.py` and `tests/test_bad_inputs_more.py`, which check each of them.", "",
+             "cases of `tests/test_bad_inputs.py`, `tests/test_bad_inputs_more.py` and `tests/test_compensation_inputs.py`, which "
+             "check each of them. `zrp-ga-compensate` checks its inputs as `zrp-ga` does (regular files, units from the data, "
+             "duplicate columns, rotations, the output directory and the size before any work); `zrp_ga.compensate` called "
+             "with a wrong kind of argument raises a TypeError or ValueError naming it.", "",
              "| class | example | command | what it prints |", "| --- | --- | --- | --- |"]  # fmt: skip
     for kind, what, command, line in rows:
         cell = lambda t: t.replace("|", "\\|")

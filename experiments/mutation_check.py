@@ -38,6 +38,9 @@ MODEL = ["tests/test_so3.py", "tests/test_kinematics.py"]
 UNITS = ["tests/test_measurement_files.py", "tests/test_measurement_units.py"]
 REPORT_STATS = ["tests/test_report_stats.py", "tests/test_report.py"]
 REPORT_SENTENCES = ["tests/test_report_sentences.py"]
+COMP_FRAMES = "tests/test_compensation_frames.py"
+COMP_TABLES = "tests/test_compensation_tables.py"
+COMP_INPUTS = "tests/test_compensation_inputs.py"
 
 PLANTS: list[dict] = [
     # --- operators: the distributions ---------------------------------------------------------
@@ -172,6 +175,52 @@ PLANTS: list[dict] = [
     dict(name="report-effect-wrong-side", file="zrp_ga/report/conclusions.py",
          old='return str(row["a"]), FLIP.get(v, v), 1 - e, 1 - hi, 1 - lo', new='return str(row["a"]), FLIP.get(v, v), e, lo, hi',
          tests=REPORT_SENTENCES, what="report: the effect P(best ends lower) given from the other side of the pair"),
+    # --- compensation (zrp_ga.compensation): frames, sizes, units, setups ---------------------------
+    dict(name="comp-orientation-frame", file="zrp_ga/compensation/frames.py",
+         old="return p @ T[:3, :3].T + T[:3, 3], None if R is None else T[:3, :3] @ R",
+         new="return p @ T[:3, :3].T + T[:3, 3], R", tests=[COMP_FRAMES],
+         what="compensation: orientation targets in the tracker's frame (or a work object) not turned into the base frame"),
+    dict(name="comp-prismatic-size", file="zrp_ga/compensation/result.py",
+         old='out["dq_mm"] = dq[:, pri].max(axis=1) * 1e3', new='out["dq_mm"] = np.degrees(dq[:, pri].max(axis=1))',
+         tests=[COMP_TABLES], what="compensation: a prismatic joint's correction reported as if it were an angle"),
+    dict(name="comp-seed-units", file="zrp_ga/compensation/compensate.py",
+         old="return q * np.where(robot.prismatic, LENGTH[pr.length_unit], ANGLE[unit])", new="return q",
+         tests=[COMP_TABLES], what="compensation: the first seed read in radians whatever the program's joint unit"),
+    dict(name="comp-length-unit", file="zrp_ga/compensation/program.py",
+         old="p = None if p_file is None else p_file * LENGTH[length]", new="p = p_file",
+         tests=[COMP_TABLES], what="compensation: a program's positions left in its length unit (mm read as m)"),
+    dict(name="comp-angle-unit-auto", file="zrp_ga/compensation/program.py",
+         old='return "deg" if beyond.any() or (joint_unit == "deg" and cols.joints is not None) else "rad"', new='return "rad"',
+         tests=[COMP_TABLES], what="compensation: orientations in degrees read as radians"),
+    dict(name="comp-quaternion-order", file="zrp_ga/compensation/orientation.py",
+         old="return Rotation.from_quat(values[:, [1, 2, 3, 0]]).as_matrix()", new="return Rotation.from_quat(values).as_matrix()",
+         tests=[COMP_TABLES], what="compensation: a quaternion's q1..q4 read as x, y, z, w instead of ABB's w, x, y, z"),
+    dict(name="comp-kuka-names", file="zrp_ga/compensation/orientation.py",
+         old='NAMED = {"ZYX": ("A", "B", "C")', new='NAMED = {"ZYX": ("C", "B", "A")',
+         tests=[COMP_TABLES], what="compensation: KUKA's A and C swapped"),
+    dict(name="comp-wrist-sign", file="zrp_ga/compensation/configuration.py",
+         old="np.dot(u[3], np.cross(u[4], u[5]))", new="np.dot(u[3], np.cross(u[3], u[5]))",
+         tests=[COMP_TABLES], what="compensation: the wrist's branch sign from the wrong axes (always 0)"),
+    dict(name="comp-base-foot", file="zrp_ga/compensation/frames.py",
+         old="origin = axis1.point + s * z", new="origin = axis1.point",
+         tests=[COMP_FRAMES], what="base frame by convention: the origin not at the common normal's foot (the first link's error kept)"),
+    dict(name="comp-circle-sense", file="zrp_ga/compensation/frames.py",
+         old="direction = normal if np.sum(turns) > 0 else -normal", new="direction = normal",
+         tests=[COMP_FRAMES], what="circles: an axis's sense not taken from the way the joint turned"),
+    dict(name="comp-work-object-z", file="zrp_ga/compensation/frames.py",
+         old="z = np.cross(x, oy)", new="z = np.cross(oy, x)", tests=[COMP_FRAMES],
+         what="work object: z = (Y - O) x x, the frame turned half a turn about x"),
+    dict(name="comp-base-default", file="zrp_ga/compensation/setups.py",
+         old='if setup == "calibration" or (setup == "auto" and arms.base is None):', new='if setup in ("calibration", "auto"):',
+         tests=[COMP_FRAMES], what="compensation: a measured run's base frame left the registration's by default"),
+    dict(name="comp-work-object-size", file="zrp_ga/compensation/setups.py",
+         old="k = float(np.sqrt(1.0 + 2.0 * (reach_from_origin_m / points_apart_m) ** 2))",
+         new="k = float(1.0 + 2.0 * reach_from_origin_m / points_apart_m)", tests=[COMP_FRAMES],
+         what="compensation: the size a work object's point errors leave, stated with the wrong formula"),
+    dict(name="comp-nominal-unchecked", file="zrp_ga/compensation/arms.py",
+         old="    if dp > NOMINAL_SLACK * cp + NOMINAL_FLOOR_M or da > NOMINAL_SLACK * ca + NOMINAL_FLOOR_RAD:",
+         new="    if False:", tests=[COMP_INPUTS],
+         what="compensation: a --nominal arm that is not the run's accepted"),
 ]
 
 
@@ -245,30 +294,32 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _kept(out: Path, run: set[str]) -> dict[str, str]:
-    """The table lines of plants not run this time, by name, from the table already in ``out``
-    (a run with ``--only`` adds its plants' rows to the table rather than replacing it)."""
+    """The table rows of ``out`` (by plant name) for plants not run now (``--only``)."""
     if not out.exists():
         return {}
-    lines = [ln for ln in out.read_text().splitlines() if ln.startswith("| ") and not ln.startswith(("| plant ", "| --- "))]
-    return {ln.split(" | ")[0][2:]: ln for ln in lines if ln.split(" | ")[0][2:] not in run}
+    rows = [ln for ln in out.read_text().splitlines() if ln.startswith("| ") and not ln.startswith("| plant |")]
+    return {ln.split(" | ")[0][2:]: ln for ln in rows if ln.split(" | ")[0][2:] not in run}
 
 
 def write(out: Path, rows: list, argv: list[str] | None) -> None:
-    cmd = " ".join(["python experiments/mutation_check.py", *(argv if argv is not None else sys.argv[1:])])
-    lines_of = _kept(out, {p["name"] for p, *_ in rows}) if argv is None or "--only" in (argv or sys.argv[1:]) else {}
+    """The table of ``rows``; with ``--only``, the other plants' rows of the existing table are kept."""
+    args = argv if argv is not None else sys.argv[1:]
+    cmd = " ".join(["python experiments/mutation_check.py", *args])
+    kept = _kept(out, {p["name"] for p, *_ in rows}) if "--only" in args else {}
+    new = {}
     for p, result, secs, line in rows:
         test = line.removeprefix("FAILED ").removeprefix("ERROR ").split(" - ")[0].replace("|", "\\|")
         tests = ", ".join(Path(t).name for t in p["tests"])
-        lines_of[p["name"]] = f"| {p['name']} | {p['file']} | {p['what']} | {tests} | {result} | {secs:.0f} | {test} |"
-    order = [p["name"] for p in PLANTS if p["name"] in lines_of]
-    table = [lines_of[n] for n in order]
+        new[p["name"]] = f"| {p['name']} | {p['file']} | {p['what']} | {tests} | {result} | {secs:.0f} | {test} |"
+    table = [kept.get(p["name"]) or new.get(p["name"]) for p in PLANTS if p["name"] in kept or p["name"] in new]
     caught = sum(" | caught" in ln for ln in table)
-    kept = " The rows of plants not in this run are those of the table before it." if len(table) > len(rows) else ""
+    said = (f"the rows of the plants run now from `{cmd}`, the others kept from the table's previous runs" if kept
+            else f"`{cmd}`")  # fmt: skip
     lines = [
         "# Mutation check: planted bugs and the tests that catch them",
         "",
-        f"Command: `{cmd}` (each plant applied alone to a copy of the repository; the named test files run with "
-        f"`python -m pytest -x -q -p no:cacheprovider FILES`).{kept}",
+        f"Command: {said} (each plant applied alone to a copy of the repository; the named test files run with "
+        "`python -m pytest -x -q -p no:cacheprovider FILES`).",
         "",
         f"**{caught} of {len(table)} plants caught.**",
         "",

@@ -123,14 +123,14 @@ def test_cli_cartesian_program_in_mm_and_degrees_with_seeds(tmp_path, capsys):
     joints, targets = read_csv(out / "joints.csv"), read_csv(out / "targets.csv")
     assert [r["line"] for r in joints] == ["2", "3", "4", "5", "6"]
     for k, (j, t) in enumerate(zip(joints, targets)):
-        qc = np.radians([float(j[f"q{i}"]) for i in range(1, 7)])
+        qc = np.radians([float(j[f"q{i}_deg"]) for i in range(1, 7)])
         assert np.abs(qc - q[k]).max() < 0.2  # the seed's branch
         reached = dh_fk(true, qc)
         assert np.linalg.norm(reached[:3, 3] - poses[k][:3, 3]) < 1e-9
         assert Rotation.from_matrix(reached[:3, :3] @ poses[k][:3, :3].T).magnitude() < 1e-9
         sent = dh_fk(PUMA, qc)
-        assert np.allclose([float(t[c]) for c in "xyz"], sent[:3, 3] * 1e3, atol=1e-9)
-        R_sent = Rotation.from_euler("XYZ", [float(t[c]) for c in ("rx", "ry", "rz")], degrees=True).as_matrix()
+        assert np.allclose([float(t[f"{c}_mm"]) for c in "xyz"], sent[:3, 3] * 1e3, atol=1e-9)
+        R_sent = Rotation.from_euler("XYZ", [float(t[c]) for c in ("X1_deg", "Y2_deg", "Z3_deg")], degrees=True).as_matrix()
         assert np.allclose(R_sent, sent[:3, :3], atol=1e-12)
         dx = np.linalg.norm(sent[:3, 3] - poses[k][:3, 3]) * 1e3
         assert float(t["dx_mm"]) == pytest.approx(dx, rel=1e-9)
@@ -177,7 +177,7 @@ def test_target_out_of_reach_named_by_line(tmp_path, capsys):
     assert main([str(cal), str(prog), "--nominal", str(nominal), "-o", str(tmp_path / "o"), "--keep-unreachable"]) == 0
     rows = read_csv(tmp_path / "o" / "joints.csv")
     assert rows[0]["status"] == "ok" and rows[1]["status"].startswith("unreachable: out of reach")
-    assert rows[1]["q1"] == ""
+    assert rows[1]["q1_rad"] == ""
     assert "unreachable: line 4: out of reach" in capsys.readouterr().out
 
 
@@ -188,8 +188,9 @@ def test_target_out_of_reach_named_by_line(tmp_path, capsys):
         (["x", "y", "z"], [[0.1, 0.2, 0.3], [0.4, "nan", 0.5]], [], "prog.csv, line 3, column 'y': 'nan' is not a finite number"),
         (["x", "y", "z"], [[0.1, "", 0.3]], [], "prog.csv, line 2, column 'y': empty"),
         (["q1", "q2", "q3"], [[0, 0, 0]], [], "joint columns q1, q2, q3, but puma has 6 joints"),
-        (["q1", "q2", "q3", "q4", "q5", "q6"], [[0, 0, 0, 0, 0, 0], [0, 0, 90, 0, 0, 0]], [],
-         "prog.csv, line 3, column 'q3': 90 rad is outside joint 3's limits [-2.35619, 2.35619] rad; in degrees?"),
+        (["q1", "q2", "q3", "q4", "q5", "q6"], [[0, 0, 0, 0, 0, 0], [0, 0, 90, 0, 0, 0]], ["--angle-unit", "rad"],
+         "prog.csv, line 3, column 'q3': 90 rad is outside joint 3's limits [-2.35619, 2.35619] rad; in degrees? "
+         "angle_unit (--angle-unit) deg"),
         (["x", "y", "z", "rx", "ry", "rz"], [[0.4, 0.1, 0.9, 0, 0, 0]], [], "columns rx, ry, rz need their orientation convention"),
         (["x", "y", "z"], [[0.4, 0.1, 0.9]], ["--frame", "instrument"], "has no base transform"),
         (["x", "y", "z", "rx", "rz"], [[0.4, 0.1, 0.9, 0, 0]], ["--orientation-convention", "XYZ"], "prog.csv: missing column 'ry'"),
@@ -238,8 +239,8 @@ def test_run_directory_compensation_on_the_true_arm(tmp_path):
     truth = cal.task.calibrated_robot(cal.task.truth)
     q = programme(PUMA, np.random.default_rng(11), 6, CASES["puma560"][2])
     c = zrp_ga.compensate(tmp_path / "run", q, kind="joints", out=tmp_path / "comp")
-    with pytest.raises(ValueError, match="a run's URDF carries its base and tool frames"):
-        zrp_ga.compensate(tmp_path / "run" / "calibrated_robot.urdf", q, kind="joints")
+    urdf = zrp_ga.compensate(tmp_path / "run" / "calibrated_robot.urdf", q, kind="joints")  # the arm in its base frame too
+    assert urdf.arms.nominal.name == "puma560" and np.allclose(urdf.q, c.q, rtol=0, atol=1e-12)
     assert c.arms.nominal.name == "puma560"
     from zrp_ga.model import kinematics
 

@@ -126,14 +126,16 @@ def test_calibration_in_the_instruments_frame_and_the_robot_files_out(tmp_path, 
     # the model in the instrument's frame loads back and predicts as reported
     model = ZRPRobot.from_yaml(out / "calibrated_in_instrument.yaml")
     np.testing.assert_allclose(np.linalg.norm(kinematics.forward(model, q)[1] - measured, axis=1) * 1e3, reported, atol=1e-9)
-    # the URDF, read by an independent walk (tests/urdf_reference.py): world -> tool predicts the same
-    names = robots.get("ur10").joint_names
-    for k in range(0, 60, 7):
-        T = urdf_fk(out / "calibrated_robot.urdf", dict(zip(names, q[k])), "world", "tool")
-        assert np.linalg.norm(T[:3, 3] - measured[k]) * 1e3 == pytest.approx(reported[k], abs=1e-9)
-    # base and tool transforms: 4x4 and xyz + quaternion say the same; base @ arm @ tool is the model
+    # the URDF (the robot alone, from its own base frame) read by an independent walk
+    # (tests/urdf_reference.py), with the frames file's base and tool, predicts the same
     frames = yaml.safe_load((out / "calibrated_robot_frames.yaml").read_text())
     base, tool = (np.array(frames[k]["matrix"]) for k in ("base", "tool"))
+    names = robots.get("ur10").joint_names
+    assert "world" not in (out / "calibrated_robot.urdf").read_text()
+    for k in range(0, 60, 7):
+        T = base @ urdf_fk(out / "calibrated_robot.urdf", dict(zip(names, q[k])), "base_link", "hand") @ tool
+        assert np.linalg.norm(T[:3, 3] - measured[k]) * 1e3 == pytest.approx(reported[k], abs=1e-9)
+    # base and tool transforms: 4x4 and xyz + quaternion say the same; base @ arm @ tool is the model
     for entry in (frames["base"], frames["tool"]):
         T = np.array(entry["matrix"])
         np.testing.assert_allclose(Rotation.from_quat(entry["quaternion_xyzw"]).as_matrix(), T[:3, :3], atol=1e-12)
@@ -206,7 +208,7 @@ def test_several_tools_calibrate_one_arm_and_leave_as_robot_files(tmp_path, rng)
     for a, b in (("A", "B"), ("A", "C")):
         found = base[:3, :3] @ arm.R_h0 @ (tools[b][:3, 3] - tools[a][:3, 3])
         np.testing.assert_allclose(found, true_hand @ (TOOLS[b] - TOOLS[a]), atol=2e-4)
-    # an independent walk (tests/urdf_reference.py): world -> hand, then each row's tool
+    # an independent walk (tests/urdf_reference.py): base (frames file) and base_link -> hand, then each row's tool
     # transform, predicts the validation points as reported
     names = robots.get("ur10").joint_names
     data = pd.read_csv(val)
@@ -214,7 +216,7 @@ def test_several_tools_calibrate_one_arm_and_leave_as_robot_files(tmp_path, rng)
     reported = poses[poses["set"] == "validation"].reset_index(drop=True)
     assert list(reported["tool"]) == list(data["tool"])
     for k in range(0, len(data), 7):
-        hand = urdf_fk(tmp_path / "run" / "calibrated_robot.urdf", dict(zip(names, data.loc[k, [f"q{i}" for i in range(1, 7)]].to_numpy(float))), "world", "hand")
+        hand = base @ urdf_fk(tmp_path / "run" / "calibrated_robot.urdf", dict(zip(names, data.loc[k, [f"q{i}" for i in range(1, 7)]].to_numpy(float))), "base_link", "hand")
         p = (hand @ tools[data.loc[k, "tool"]])[:3, 3] * 1e3
         assert np.linalg.norm(p - data.loc[k, ["x", "y", "z"]].to_numpy(float)) == pytest.approx(reported["calibrated_mm"][k], abs=1e-8)
 

@@ -140,8 +140,15 @@ def test_write_robot_files(tmp_path, rng):
     robot = robot.replace(u0=robot.u0 + rng.normal(scale=1e-5, size=(6, 3)), normalize=True)  # calibrated-like
     base, tool = random_pose(rng), random_pose(rng)
     paths = write_robot_files(robot, tmp_path / "out", base=base, tool=tool)
-    assert set(paths) == {"urdf", "dh", "mdh", "zrp", "frames"} and all(p.is_file() for p in paths.values())
+    # a UR arm read from a DH file: its kinematics for ur_description, corrections beside the tables
+    assert set(paths) == {"urdf", "dh", "mdh", "zrp", "frames", "dh_corrections", "mdh_corrections", "ur_kinematics"}
+    assert all(p.is_file() for p in paths.values())
     assert_same_robot(read_robot(paths["zrp"]), robot, atol=1e-15)  # ZRPRobot renormalises u0: an ulp
+    # the URDF is the robot alone, from its own base frame: base and tool are in the frames file only
+    assert "world" not in paths["urdf"].read_text() and 'name="tool"' not in paths["urdf"].read_text()
+    assert_same_robot(read_robot(paths["urdf"]), robot)  # base_link .. hand, the only root and leaf
+    # on request, base and tool as fixed joints to new links world and tool
+    paths = write_robot_files(robot, tmp_path / "out", base=base, tool=tool, frames_in_urdf=True)
     assert_same_robot(read_robot(paths["urdf"], base_link="base_link", tip_link="hand"), robot)
     whole = read_robot(paths["urdf"])  # world .. tool
     q = rng.uniform(-3, 3, size=(5, 6))

@@ -148,8 +148,10 @@ def test_the_initial_population_table_is_write_csvs(tmp_path):
 def test_the_robot_files_report_each_tables_own_mismatch(tmp_path):
     arm = robots.get("stanford")
     paths, mismatch = robot_files.write_all(arm, tmp_path)
+    like = dh.nominal_tables(arm)  # a preset: its own DH file's table is the nominal
     for convention, title in (("dh", "Standard DH"), ("mdh", "Modified DH")):
-        table, want = dh.to_dh(arm, convention)
+        table, want = dh.to_dh(arm, convention, like=like[convention])
         assert mismatch[convention] == want
-        header = f"{title} table of {arm.name} (zrp_ga.io.robot_files.to_dh): {want}"
-        assert paths[convention].read_text() == robot_files.dh_to_yaml(table, comment="\n".join([header, *want.notes]))
+        header = [f"{title} table of {arm.name} (zrp_ga.io.robot_files.to_dh): {want}", *want.notes,
+                  f"In the nominal table's conventions (row = nominal + correction; calibrated_robot_{convention}_corrections.csv)"]  # fmt: skip
+        assert paths[convention].read_text() == robot_files.dh_to_yaml(table, comment="\n".join(header), near=like[convention])

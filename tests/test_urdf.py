@@ -282,3 +282,65 @@ def test_an_arm_whose_joints_are_no_longer_the_files_gets_a_new_urdf(tmp_path, c
     text = to_urdf(robot)
     assert "the arm's joints are no longer the file's chain; writing a new URDF instead" in caplog.text
     assert '<link name="link_1" />' in text and "kuka" not in text
+
+
+# --- angle triples nearest the nominal ones --------------------------------------------------------
+OLD_UR = [  # a ROS 1-style UR10 description (its own numbers): two joints' frames pitched by 90 degrees
+    ("shoulder_pan_joint", "revolute", [0, 0, 0.1273], [0, 0, 0], "0 0 1"),
+    ("shoulder_lift_joint", "revolute", [0, 0.220941, 0], [0.0, 1.570796325, 0.0], "0 1 0"),
+    ("elbow_joint", "revolute", [0, -0.1719, 0.612], [0, 0, 0], "0 1 0"),
+    ("wrist_1_joint", "revolute", [0, 0, 0.5723], [0.0, 1.570796325, 0.0], "0 1 0"),
+    ("wrist_2_joint", "revolute", [0, 0.1149, 0], [np.pi, 0, 0], "0 0 -1"),
+    ("wrist_3_joint", "revolute", [0, 0, -0.1157], [0, 0, 0], "0 1 0"),
+    ("ee_fixed_joint", "fixed", [0, 0.0922, 0], [0.0, 0.0, 1.570796325], None),
+]
+
+
+def origin_numbers(path, joint, attr):
+    element = etree.parse(str(path)).getroot().find(f"joint[@name='{joint}']")
+    return element.find("origin").get("rpy") if attr == "rpy" else element.find("axis").get("xyz")
+
+
+def test_a_small_correction_reads_small_in_every_origins_rpy(tmp_path, rng):
+    """Roll pi stays next to pi; where the nominal pitch is 90 degrees (no triple is near: roll
+    and yaw would take half a radian each for a 1 mrad turn) the rpy text stays and the axis
+    carries the tilt; the URDF is the arm to round-off (tests/urdf_reference.py, yourdfpy)."""
+    path = tmp_path / "old_ur.urdf"
+    path.write_text(urdf_text(OLD_UR))
+    nominal = read_robot(path)
+    arm = calibrated(nominal, rng, scale=1e-3)
+    out = tmp_path / "calibrated.urdf"
+    to_urdf(arm, out)
+    names = [j[0] for j in OLD_UR[:-1]]
+    assert_urdf_is_the_arm(out, arm, rng, "l0", "l7", names)
+    for name, _, _, rpy, axis in OLD_UR:
+        written = np.array(origin_numbers(out, name, "rpy").split(), dtype=float)
+        if rpy[1] == 1.570796325:  # kept as written; the axis tilts by about the error
+            assert origin_numbers(out, name, "rpy") == " ".join(repr(float(v)) for v in rpy)
+            tilt = np.array(origin_numbers(out, name, "axis").split(), dtype=float) - np.array(axis.split(), dtype=float)
+            assert 1e-5 < np.abs(tilt).max() < 1e-2
+        else:
+            assert np.abs(written - rpy).max() < 1e-2, (name, written)
+            assert axis is None or origin_numbers(out, name, "axis") == axis
+    yourdfpy = pytest.importorskip("yourdfpy")
+    urdf = yourdfpy.URDF.load(str(out), build_scene_graph=True, load_meshes=False)
+    for q in random_q(arm, rng, 5):
+        urdf.update_cfg(dict(zip(names, q)))
+        R, p = kinematics.forward(arm, q)
+        np.testing.assert_allclose(urdf.get_transform("l7", "l0"), pose(p, Rotation.from_matrix(R)), atol=1e-12)
+
+
+@pytest.mark.parametrize("pitch_deg", [0.0, 45.0, -80.0, 179.0])
+def test_rpy_near_is_the_nominal_triple_plus_the_small_turn(pitch_deg, rng):
+    from zrp_ga.io.urdf import reads_small, rpy_near
+
+    for _ in range(20):
+        nominal = np.array([rng.uniform(-np.pi, np.pi), np.radians(pitch_deg), rng.choice([np.pi, -np.pi, 0.3])])
+        turn = rng.normal(scale=1e-3, size=3)
+        R = Rotation.from_euler("xyz", nominal).as_matrix() @ Rotation.from_rotvec(turn).as_matrix()
+        r = rpy_near(R, nominal)
+        np.testing.assert_allclose(Rotation.from_euler("xyz", r).as_matrix(), R, atol=1e-14)
+        assert np.abs(r - nominal).max() < 5 * np.linalg.norm(turn) / max(np.cos(nominal[1]) ** 2, 0.03)
+        assert reads_small(R, nominal)
+    R = Rotation.from_euler("xyz", [0, 1.570796325, 0]).as_matrix() @ Rotation.from_rotvec([0, 0, 1e-3]).as_matrix()
+    assert not reads_small(R, [0, 1.570796325, 0])  # the issue's case: roll and yaw of about half a radian

@@ -168,7 +168,7 @@ def calibrate(
 def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, progress: bool, settings: dict) -> list[Calibration]:
     from zrp_ga.io import presets
     from zrp_ga.problems import measured
-    from zrp_ga.run import build, execute
+    from zrp_ga.run import budget, build, execute
     from zrp_ga.run.shared import Cache
 
     measured_problem = data is not None and not isinstance(settings.get("problem"), str)  # problem={...}: its keys
@@ -185,7 +185,10 @@ def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, 
     if data is not None:
         conf = config.section(config.MeasuredConf, {k: v for k, v in base.problem.items() if k != "_target_"}, "problem")
         calib, val = _measurements(data, arm, conf, "data"), _measurements(validation, arm, conf, "validation")
+        budget.check_config(base, arm, problem=measured.data_size(arm, conf, calib, val))  # before the work: one line
         task = measured.from_measurements(arm, calib, val, conf)
+    else:
+        budget.check_config(base, arm)  # the problem of the config, before it is built
     cache = Cache()  # the instance is the one built here, not the config's
     prepared = []
     for k, seed in enumerate(seeds):

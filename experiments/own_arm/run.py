@@ -11,9 +11,10 @@ then the two other validations (the tracker moved: ``validation_moved.csv`` with
 ``problem.validation_registration=rigid``; a fourth reflector at a known place:
 ``validation_tool_d.csv`` with ``problem.known_tools={D:[0,0,80]}``), and checks each run's
 calibrated URDF read back (for the URDF arm: ``irb140.urdf`` with only its joint origins
-changed, plus the base and tool as new fixed joints): its forward kinematics from ``world`` to
-``tool`` and the tool transforms of ``calibrated_robot_frames.yaml`` must predict the validation
-points as the run's ``pose_errors.csv`` says. Writes results/own_arm.md. Make the
+changed; the robot alone, from its own base frame): the base transform of
+``calibrated_robot_frames.yaml``, its forward kinematics from the root link to the hand and the
+tool transforms of that file must predict the validation points as the run's
+``pose_errors.csv`` says. Writes results/own_arm.md. Make the
 data first (``python experiments/own_arm/make_data.py``). Run:
 
     python experiments/own_arm/run.py [--out DIR]
@@ -70,12 +71,12 @@ def runs() -> dict[tuple[str, str, str], list[str]]:
 
 def urdf_check(run_dir: Path, summary: dict) -> float:
     """Largest difference (mm) between the validation errors the run reports (``pose_errors.csv``)
-    and those of its calibrated URDF read back (FK world -> tool, back to the hand by the first
-    tool, then each row's tool transform from the frames file), for validations in the
-    calibration's frame."""
-    urdf = robot_files.read_robot(run_dir / "calibrated_robot.urdf", base_link="world", tip_link="tool")
+    and those of its calibrated URDF read back (the frames file's base, FK from the URDF's root
+    link to its hand, then each row's tool transform from the frames file), for validations in
+    the calibration's frame."""
+    urdf = robot_files.read_robot(run_dir / "calibrated_robot.urdf")  # the robot's own root and hand
     frames = yaml.safe_load((run_dir / "calibrated_robot_frames.yaml").read_text())
-    first = np.linalg.inv(np.array(frames["tool"]["matrix"]))
+    base = np.array(frames["base"]["matrix"])
     tools = {k: np.array(v["matrix"]) for k, v in frames.get("tools", {"tool": frames["tool"]}).items()}
     val = pd.read_csv(ROOT / summary["problem"]["files"]["validation"])
     reported = pd.read_csv(run_dir / "pose_errors.csv")
@@ -85,7 +86,7 @@ def urdf_check(run_dir: Path, summary: dict) -> float:
         R, p = kinematics.forward(urdf, np.radians(row[[f"q{i}" for i in range(1, 7)]].to_numpy(dtype=float)))
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = R, p
-        T = T @ first @ tools[row.get("tool", "tool") if len(tools) > 1 else next(iter(tools))]
+        T = base @ T @ tools[row.get("tool", "tool") if len(tools) > 1 else next(iter(tools))]
         err = np.linalg.norm(T[:3, 3] * 1e3 - row[["x", "y", "z"]].to_numpy(dtype=float))
         worst = max(worst, abs(err - reported["calibrated_mm"][k]))
     return worst

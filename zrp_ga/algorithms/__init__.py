@@ -12,8 +12,10 @@ population's), ``n_nonfinite`` (of the last evaluated batch), :meth:`Algorithm.c
 genome and cost the row reports), ``best_x``/``best_cost`` (the best ever seen) and ``toolbox``
 (DEAP's, with at least ``evaluate``).
 
-A new optimiser is one module here with a subclass of :class:`Algorithm` and one config file in
-``conf/algorithm`` naming it by ``_target_``.
+A new optimiser is one module (here, or anywhere Python imports it from) with a subclass of
+:class:`Algorithm` and one config file in ``conf/algorithm`` naming it by ``_target_``; its
+:meth:`Algorithm.size` declares what it holds and evaluates (:class:`AlgorithmSize`), for the
+run's memory and time estimate (:mod:`zrp_ga.run.budget`).
 """
 
 from __future__ import annotations
@@ -28,10 +30,42 @@ from deap import base
 from numpy.typing import NDArray
 
 from zrp_ga.core.problem import Problem
+from zrp_ga.problems.size import FLOAT, Lower, ProblemSize
 
 Array = NDArray[np.float64]
 
 STATS = ("best", "mean", "median", "std", "worst")
+INDIVIDUAL_BYTES = 600  # a DEAP individual's objects beside its genes
+HANDLING_S = 3e-4  # per evaluation: DEAP's copying, selection and variation of an individual (measured for the GA)
+POPULATION: Lower = ("population", "lower population.mu and population.lambda_")
+
+
+@dataclasses.dataclass(frozen=True)
+class AlgorithmSize:
+    """What an optimiser declares about a run on a problem of a given size
+    (:meth:`Algorithm.size`): ``population``, the genomes it evaluates at once; ``evaluations``
+    in all (None: not known before the run); ``held_bytes``, what it holds itself (its genomes,
+    its own state); ``evaluation_s``, its own seconds per evaluation; ``lower``, the setting
+    that drives the population's memory and what to do, as the refusal says it."""
+
+    population: int
+    evaluations: int | None
+    held_bytes: float
+    evaluation_s: float = HANDLING_S
+    lower: Lower = POPULATION
+
+
+def genomes_bytes(population: int, genes: int) -> float:
+    """Bytes of ``population`` genomes of ``genes`` numbers held twice (the population and its
+    variation), with an individual's Python objects."""
+    return population * (2 * FLOAT * genes + INDIVIDUAL_BYTES)
+
+
+def evaluations(generations: int | None, max_evals: int | None, first: int, per_generation: int) -> int | None:
+    """The evaluations of a budget of ``generations`` after a ``first`` population, or
+    ``max_evals``, whichever is fewer (None: neither is set)."""
+    counts = [v for v in (max_evals, generations and first + generations * per_generation) if v]
+    return min(counts) if counts else None
 
 
 def stats_together(costs: Sequence[Array]) -> list[dict[str, float] | None]:
@@ -141,6 +175,13 @@ class Algorithm:
 
     def fraction_done(self) -> float | None:
         """How much of the budget is spent, for a progress line; None if unknown."""
+        return None
+
+    def size(self, problem: ProblemSize) -> AlgorithmSize | None:
+        """What this optimiser, as configured, holds and evaluates on a problem of ``problem``'s
+        size (:class:`AlgorithmSize`), declared before the problem is built. None: it declares
+        nothing, and the estimate counts it as a population of ``population.mu +
+        population.lambda_`` genomes, saying so (:mod:`zrp_ga.run.budget`)."""
         return None
 
     def result(self) -> Result:

@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.algorithms import Algorithm, Result
+from zrp_ga.algorithms import Algorithm, AlgorithmSize, Result, genomes_bytes
 from zrp_ga.config import ConfigError
 from zrp_ga.core.problem import Sampling
+from zrp_ga.problems.size import ProblemSize
 
 
 class Exchange(Algorithm):
@@ -28,6 +29,16 @@ class Exchange(Algorithm):
         if max_evals is not None and max_evals < 1:
             raise ConfigError(f"algorithm.max_evals: must be at least 1 (or null), got {max_evals}")
         self.max_evals = max_evals
+
+    def size(self, problem: ProblemSize) -> AlgorithmSize:
+        """A step evaluates every subset with one candidate added (N - k of them), then every one
+        with one removed (k + 1), each batch at once; ``max_evals`` evaluations (None: until no
+        exchange improves, not known before)."""
+        k = problem.genes
+        P = max((problem.choices or k + 1) - k, k + 1)
+        return AlgorithmSize(P, self.max_evals, genomes_bytes(P, k) + genomes_bytes(P, k + 1),
+                             lower=("problem", "the exchange algorithm evaluates a subset per candidate at once: "
+                                               "choose among fewer candidate poses"))  # fmt: skip
 
     def initialize(self) -> None:
         p = self.problem

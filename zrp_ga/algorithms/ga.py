@@ -20,11 +20,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zrp_ga import operators
-from zrp_ga.algorithms import Algorithm, Array, Result
+from zrp_ga.algorithms import Algorithm, AlgorithmSize, Array, Result, evaluations, genomes_bytes
 from zrp_ga.config import ConfigError, PopulationConf, RefineConf, Repair, SelectionConf, Strategy, VariationConf, section
 from zrp_ga.core.problem import GeneBlocks, LeastSquares, Problem, Repairing, Sampling
 from zrp_ga.operators.base import Streams
 from zrp_ga.operators.repair import repair
+from zrp_ga.problems.size import ProblemSize
 
 UNARY = (("mutate", "mutation"), ("invert", "inversion"), ("rotate", "rotation"))
 
@@ -66,6 +67,13 @@ class GA(Algorithm):
         ]:
             if node is not None:
                 operators.target(node, key)  # the function exists and takes these parameters
+
+    def size(self, problem: ProblemSize) -> AlgorithmSize:
+        """Parents and offspring (``mu + lambda_``) held and evaluated at once; ``mu`` first,
+        then ``lambda_`` a generation."""
+        c = self.pop_conf
+        P = c.mu + c.lambda_
+        return AlgorithmSize(P, evaluations(c.generations, c.max_evals, c.mu, c.lambda_), genomes_bytes(P, problem.genes))
 
     def setup(self, problem: Problem, rng: np.random.Generator) -> None:
         """Bind the operators to the problem's ranges and blocks and register them. The optional

@@ -17,10 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.algorithms import Algorithm, Callback, Result
+from zrp_ga.algorithms import Algorithm, AlgorithmSize, Callback, Result, genomes_bytes
 from zrp_ga.config import ConfigError
 from zrp_ga.core.problem import LeastSquares
 from zrp_ga.problems.least_squares import X_SCALE, levenberg_marquardt  # noqa: F401 (X_SCALE: named here as before)
+from zrp_ga.problems.size import FLOAT, ProblemSize
 
 
 class LM(Algorithm):
@@ -29,6 +30,12 @@ class LM(Algorithm):
         if max_evals is not None and max_evals < 1:
             raise ConfigError(f"algorithm.max_evals: must be at least 1 (or null), got {max_evals}")
         self.max_evals = max_evals
+
+    def size(self, problem: ProblemSize) -> AlgorithmSize:
+        """One genome at a time and its Jacobian ``(R, K)`` twice (scipy's and MINPACK's copy);
+        ``max_evals`` evaluations (None: MINPACK's own count, not known before)."""
+        held = genomes_bytes(1, problem.genes) + FLOAT * 2 * problem.rows * problem.genes
+        return AlgorithmSize(1, self.max_evals, held, lower=("problem", "Levenberg-Marquardt holds one genome: lower the problem's size"))
 
     def run(self, problem: LeastSquares, rng: np.random.Generator, callbacks: tuple[Callback, ...] = (), state: dict | None = None) -> Result:
         """One fit (:func:`zrp_ga.problems.least_squares.levenberg_marquardt`); the callbacks see

@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from zrp_ga.algorithms import Algorithm, Result
+from zrp_ga.algorithms import Algorithm, AlgorithmSize, Result, genomes_bytes
 from zrp_ga.config import ConfigError
 from zrp_ga.core.problem import Sampling
+from zrp_ga.problems.size import ProblemSize
 
 
 class RandomSearch(Algorithm):
@@ -21,6 +22,11 @@ class RandomSearch(Algorithm):
             if value < 1:
                 raise ConfigError(f"algorithm.{key}: must be at least 1, got {value}")
         self.samples, self.batch = int(samples), int(batch)
+
+    def size(self, problem: ProblemSize) -> AlgorithmSize:
+        """A batch of genomes at a time, ``samples`` in all."""
+        P = min(self.batch, self.samples)
+        return AlgorithmSize(P, self.samples, genomes_bytes(P, problem.genes), lower=("algorithm.batch", "lower algorithm.batch"))
 
     def initialize(self) -> None:
         self._draw()

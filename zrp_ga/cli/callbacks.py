@@ -3,7 +3,8 @@
 :class:`Prepare` checks a single run's config and builds its objects (robot, problem,
 optimiser) before Hydra creates the run's directory, so that bad input stops with one line and
 leaves nothing behind; the run it built is handed to :func:`zrp_ga.cli.main`
-(:func:`take_prepared`), which runs it without building it again. :class:`Manifest` prepares
+(:func:`take_prepared`), which runs it without building it again. :class:`Manifest` refuses a sweep
+whose largest job does not fit the memory (:mod:`zrp_ga.cli.sweep_size`), prepares
 the sweep directory and writes the manifest's table (each job records its own states,
 :func:`zrp_ga.run.execute.sweep_job`).
 """
@@ -79,6 +80,16 @@ class Manifest(Callback):
     job (Hydra skips ``on_multirun_end`` when a job failed) and at the end."""
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        from hydra.errors import HydraException
+
+        from zrp_ga.cli import sweep_size
+
+        try:
+            sweep_size.check(config)  # the largest job against the memory limit, once, before any job or directory
+        except (ValueError, OSError) as exc:
+            raise Refused(exc) from None
+        except HydraException:  # a job that cannot be composed: the sweeper says which, as it checks them
+            pass
         directory.repair(Path(config.hydra.sweep.dir))
 
     def on_job_end(self, config: DictConfig, job_return: Any, **kwargs: Any) -> None:

@@ -53,3 +53,18 @@ def regular_file(path: str | os.PathLike, what: str, missing: str = "no such fil
         kind = KINDS.get(stat.S_IFMT(mode), "not a regular file")
         raise ValueError(f"{path}: {kind}, not a regular file; expected {what}")
     return path
+
+
+def writable_dir(path: Any, what: str) -> Path:
+    """``path`` if a directory can be created there and written into: no file in the way, and
+    the first existing folder on the way to it writable; ValueError naming ``what`` otherwise
+    (before any work, so that nothing computed is lost to an output that cannot be written)."""
+    path = as_path(path, what)
+    for folder in (path, *path.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                raise ValueError(f"{what}: cannot create {path}: {folder} is a file, not a directory")
+            if not os.access(folder, os.W_OK | os.X_OK):
+                raise ValueError(f"{what}: cannot write into {folder} (permission denied)")
+            return path
+    return path

@@ -113,9 +113,7 @@ def from_table(table, fmt: Format, robot: ZRPRobot, drop_bad_rows: bool = False,
     if not isinstance(table, pd.DataFrame):
         raise ValueError(f"{source}: expected a pandas DataFrame, got {type(table).__name__}")
     names = [str(c).strip() for c in table.columns]
-    repeated = sorted({c for c in names if names.count(c) > 1})
-    if repeated:
-        raise ValueError(f"{source}: column {repeated[0]!r} appears {names.count(repeated[0])} times")
+    refuse_repeated(names, source)
     raw = pd.DataFrame({c: [str(v) for v in table.iloc[:, j]] for j, c in enumerate(names)}, dtype=object)
     return _checked(raw, np.arange(len(raw)), fmt, robot, drop_bad_rows, source, "row")
 
@@ -144,12 +142,26 @@ def _check_units(path: Path | str, fmt: Format) -> None:
     check_convention(fmt.orientation_convention, f"{path}: orientation convention")
 
 
+def refuse_repeated(names: list[str], source: str) -> None:
+    """A column name given twice in an in-memory table: which copy is meant cannot be told."""
+    repeated = sorted({c for c in names if names.count(c) > 1})
+    if repeated:
+        raise ValueError(f"{source}: column {repeated[0]!r} appears {names.count(repeated[0])} times")
+
+
 def _table(path: Path, fmt: Format):
-    """The file's cells as text (pandas DataFrame) and each row's line in the file; blank lines
-    are dropped after counting them."""
+    """The file's cells as text (pandas DataFrame) and each row's line in the file (:func:`read_cells`)."""
+    return read_cells(path, fmt.sep)
+
+
+def read_cells(path: Path, sep: str, what: str = "a measurement file (.csv)"):
+    """The cells of a ``sep``-separated text file as text (pandas DataFrame, stripped column
+    names) and each row's line in the file; blank lines are dropped after counting them. Every
+    file of rows goes through here (measurements, robot programs): a regular file (``what`` it
+    should be), text, no column name twice (:func:`_check_header`)."""
     import pandas as pd
 
-    regular_file(path, "a measurement file (.csv)")
+    regular_file(path, what)
     try:
         with open(path, "rb") as f:
             head = f.read(4096)
@@ -158,11 +170,11 @@ def _table(path: Path, fmt: Format):
         raise ValueError(f"{path}: cannot read ({exc.strerror or exc})") from None
     if b"\0" in head:
         raise ValueError(f"{path}: not a text file")
-    _check_header(path, header, fmt.sep)
+    _check_header(path, header, sep)
     try:
-        raw = pd.read_csv(path, sep=fmt.sep, dtype=str, keep_default_na=False, skip_blank_lines=False)
+        raw = pd.read_csv(path, sep=sep, dtype=str, keep_default_na=False, skip_blank_lines=False)
     except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
-        raise ValueError(f"{path}: cannot be read as a '{fmt.sep}'-separated file ({exc})".replace("\n", " ")) from None
+        raise ValueError(f"{path}: cannot be read as a '{sep}'-separated file ({exc})".replace("\n", " ")) from None
     raw.columns = [str(c).strip() for c in raw.columns]
     lines = np.arange(len(raw)) + 2  # the header is line 1
     filled = (raw.apply(lambda col: col.str.strip()) != "").any(axis=1).to_numpy() if len(raw) else np.zeros(0, bool)

@@ -55,11 +55,13 @@ import yaml
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from zrp_ga.core.fileio import write_csv
 from zrp_ga.core.files import regular_file
-from zrp_ga.io import records
-from zrp_ga.io.urdf import check_transform, read_urdf, to_urdf
+from zrp_ga.io import records, ros_calibration
+from zrp_ga.io.urdf import URDFSource, check_transform, read_urdf, rpy_near, to_urdf
 from zrp_ga.model import so3
-from zrp_ga.model.dh import CONVENTIONS, DHMismatch, DHTable, tables, to_dh
+from zrp_ga.model.dh import CONVENTIONS, DHMismatch, DHTable, nominal_tables, tables, to_dh
+from zrp_ga.model.dh import corrections as dh_corrections
 from zrp_ga.model.robot import DEFAULT_LIMITS, MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
 
 __all__ = ["DHMismatch", "DHTable", "dh_to_yaml", "read_dh", "read_robot", "to_dh", "to_urdf", "write_robot_files"]
@@ -309,10 +311,12 @@ def _matrix(doc: _Yaml, node: yaml.Node, what: str, length: float) -> Array:
 
 
 def dh_to_yaml(
-    table: DHTable, path: str | Path | None = None, length: str = "m", angle: str = "deg", comment: str = ""
+    table: DHTable, path: str | Path | None = None, length: str = "m", angle: str = "deg", comment: str = "",
+    near: DHTable | None = None,
 ) -> str:
     """Text of a DH table file (module docstring) in the given units, ``comment`` lines on top;
-    also written to ``path`` if given. Each number is written as the shortest decimal within 8
+    also written to ``path`` if given. ``near``: the nominal table, whose base and tool ``rpy``
+    triples those written are nearest (:func:`zrp_ga.io.urdf.rpy_near`). Each number is written as the shortest decimal within 8
     units in the last place of its value in the file's unit (0.0203, not 0.020300000000000012), so
     reading the file back gives the table to about 1e-15 relative.
 
@@ -335,7 +339,8 @@ def dh_to_yaml(
     columns = [table.a / L, table.alpha / A, table.d / L, table.theta / A, table.beta / A]
     if table.limits is not None:
         columns += list((np.asarray(table.limits) / np.array([[A if kind == "R" else L] for kind in table.joint_types])).T)
-    poses = [(T[:3, 3] / L, so3.rpy(T[:3, :3]) / A) for T in (table.base, table.tool)]
+    nominal = (None, None) if near is None else (so3.rpy(near.base[:3, :3]), so3.rpy(near.tool[:3, :3]))
+    poses = [(T[:3, 3] / L, rpy_near(T[:3, :3], r) / A) for T, r in zip((table.base, table.tool), nominal)]
     numbers = _short(np.concatenate(columns + [v for pose in poses for v in pose]))  # all at once
     a, alpha, d, theta, beta = (numbers[k * n:(k + 1) * n] for k in range(5))
     if table.limits is not None:
@@ -523,25 +528,43 @@ def _zrp_robot(doc: _Yaml, top: dict[str, yaml.Node]) -> ZRPRobot:
 # --- all files after a calibration -------------------------------------------------------------
 def write_robot_files(
     robot: ZRPRobot, out_dir: str | Path, stem: str = "calibrated_robot",
-    base: ArrayLike | None = None, tool: ArrayLike | None = None,
+    base: ArrayLike | None = None, tool: ArrayLike | None = None, nominal: ZRPRobot | None = None,
+    frames_in_urdf: bool = False,
 ) -> dict[str, Path]:
-    """Write the arm as URDF, DH and modified-DH table files, ZRP YAML, and the base and tool transforms.
+    """Write the arm as URDF, DH and modified-DH table files, ZRP YAML, the base and tool
+    transforms, and (a Universal Robots arm) ur_description's kinematics file.
 
-    Files in ``out_dir``: ``<stem>.urdf`` (with ``base`` and ``tool`` as fixed joints when given,
-    :func:`to_urdf`; an arm read from a URDF goes into that file), ``<stem>_dh.yaml`` and
-    ``<stem>_mdh.yaml`` (standard and modified DH, m and deg, the mismatch of :func:`to_dh` and
-    its notes in the header comment; each file with Hayati rows also says so on the console),
-    ``<stem>.yaml`` (ZRP, :meth:`ZRPRobot.to_yaml`) and ``<stem>_frames.yaml``: ``base`` and
-    ``tool`` (identity when not given), each as a 4x4 ``matrix``, ``xyz`` (m) and
-    ``quaternion_xyzw`` (x, y, z, w: scalar last). The DH and ZRP files hold the arm alone.
-    Returns {"urdf", "dh", "mdh", "zrp", "frames"} -> path.
+    Files in ``out_dir``:
+
+    - ``<stem>.urdf`` (:func:`to_urdf`): an arm read from a URDF goes into that file (its root
+      link, the robot's own base frame), others get a new URDF rooted at ``base_link``; ``base``
+      and ``tool`` go in as fixed joints to new links ``world`` and ``tool`` only with
+      ``frames_in_urdf`` (else they are in the frames file alone);
+    - ``<stem>_dh.yaml``, ``<stem>_mdh.yaml``: standard and modified DH (m and deg; the mismatch
+      of :func:`to_dh` and its notes in the header; each file with Hayati rows also says so on
+      the console), in the conventions of the nominal table (``nominal``, an arm near
+      ``robot``; default: the table or URDF ``robot.source`` was read from, see
+      :func:`zrp_ga.model.dh.nominal_tables`) where there is one, so that each row reads as the
+      nominal's plus a correction, and then ``<stem>_dh_corrections.csv`` and
+      ``<stem>_mdh_corrections.csv`` beside them (:func:`corrections_rows`);
+    - ``<stem>.yaml`` (ZRP, :meth:`ZRPRobot.to_yaml`) and ``<stem>_frames.yaml``: ``base`` (the
+      pose of the robot's base frame in the instrument's) and ``tool`` (a tool frame in the hand
+      frame), identity when not given, each as a 4x4 ``matrix``, ``xyz`` (m) and
+      ``quaternion_xyzw`` (x, y, z, w: scalar last);
+    - for a Universal Robots arm (:func:`zrp_ga.io.ros_calibration.is_ur`):
+      ``<stem>_default_kinematics.yaml``, what ur_description reads
+      (:mod:`zrp_ga.io.ros_calibration`).
+
+    The DH, ZRP and UR files hold the arm alone. Returns {"urdf", "dh", "mdh", "zrp", "frames"
+    and, where written, "dh_corrections", "mdh_corrections", "ur_kinematics"} -> path.
     """
-    return write_all(robot, out_dir, stem, base, tool)[0]
+    return write_all(robot, out_dir, stem, base, tool, nominal, frames_in_urdf)[0]
 
 
 def write_all(
     robot: ZRPRobot, out_dir: str | Path, stem: str = "calibrated_robot",
-    base: ArrayLike | None = None, tool: ArrayLike | None = None,
+    base: ArrayLike | None = None, tool: ArrayLike | None = None, nominal: ZRPRobot | None = None,
+    frames_in_urdf: bool = False,
 ) -> tuple[dict[str, Path], dict[str, DHMismatch]]:
     """:func:`write_robot_files`, and the mismatch of each DH table written ({"dh", "mdh"}):
     each table is computed once (a run of a sweep writes its files in milliseconds)."""
@@ -549,12 +572,19 @@ def write_all(
     out.mkdir(parents=True, exist_ok=True)
     paths = {"urdf": out / f"{stem}.urdf", "dh": out / f"{stem}_dh.yaml", "mdh": out / f"{stem}_mdh.yaml",
              "zrp": out / f"{stem}.yaml", "frames": out / f"{stem}_frames.yaml"}
-    to_urdf(robot, paths["urdf"], base, tool)
-    mismatches = tables(robot)  # to_dh(robot, convention) of each
+    to_urdf(robot, paths["urdf"], *((base, tool) if frames_in_urdf else (None, None)))
+    like = nominal_tables(nominal) if nominal is not None else _source_tables(robot.source)
+    if like is not None and like["dh"].joint_types != robot.joint_types:
+        like = None  # a source of another arm: the tables' own rules
+    mismatches = tables(robot, like=like)  # to_dh(robot, convention, like=...) of each
     for convention, title in (("dh", "Standard DH"), ("mdh", "Modified DH")):
         table, mismatch = mismatches[convention]
-        header = f"{title} table of {robot.name} (zrp_ga.io.robot_files.to_dh): {mismatch}"
-        dh_to_yaml(table, paths[convention], comment="\n".join([header, *mismatch.notes]))
+        header = [f"{title} table of {robot.name} (zrp_ga.io.robot_files.to_dh): {mismatch}", *mismatch.notes]
+        if like is not None:
+            paths[f"{convention}_corrections"] = out / f"{stem}_{convention}_corrections.csv"
+            header.append(f"In the nominal table's conventions (row = nominal + correction; {paths[f'{convention}_corrections'].name})")
+            write_csv(paths[f"{convention}_corrections"], corrections_rows(table, like[convention]))
+        dh_to_yaml(table, paths[convention], comment="\n".join(header), near=None if like is None else like[convention])
         if table.beta.any():
             rows = ", ".join(str(i + 1) for i in np.flatnonzero(table.beta))
             log.info("%s: row(s) %s use Hayati's parameterisation (nearly parallel axes; the file's notes say why)",
@@ -563,12 +593,80 @@ def write_all(
     poses = {"base": base, "tool": tool}
     frames = {k: _identity_entry() if T is None else _frame_entry(check_transform(T, k)) for k, T in poses.items()}
     comment = (
-        "# base: pose of the robot's world frame (URDF link base_link) in the outer frame (link world);\n"
-        "# tool: pose of the tool frame (link tool) in the hand frame (link hand). Lengths m;\n"
+        "# base: pose of the robot's base frame (the URDF's root link) in the instrument's frame;\n"
+        "# tool: pose of the tool frame in the hand frame (the URDF's tip link). Lengths m;\n"
         "# quaternion_xyzw: x, y, z, w (scalar last, as scipy and ROS).\n"
     )
     paths["frames"].write_text(comment + _yaml_text(frames))
+    if ros_calibration.is_ur(robot):
+        paths["ur_kinematics"] = out / f"{stem}_default_kinematics.yaml"
+        ros_calibration.write_ur_kinematics(robot, paths["ur_kinematics"], None if like is None else like["dh"],
+                                            _ur_world(robot.source), table=mismatches["dh"][0])  # fmt: skip
     return paths, {k: m for k, (_, m) in mismatches.items()}
+
+
+@functools.lru_cache(maxsize=16)
+def _source_tables(source: object) -> dict[str, DHTable] | None:
+    """The nominal tables of an arm read from ``source`` (:func:`zrp_ga.model.dh.nominal_tables`):
+    a DH table's own and the other convention's, a URDF's arm's; None for other sources (the
+    runs of a sweep share their nominal arm's source: computed once)."""
+    if isinstance(source, DHTable):
+        other = "mdh" if source.convention == "dh" else "dh"
+        return {source.convention: source, other: to_dh(source.to_robot(), other, samples=1)[0]}
+    if isinstance(source, URDFSource):
+        return nominal_tables(read_urdf(source.path, source.text, source.base_link, source.tip_link))
+    return None
+
+
+def _ur_world(source: object) -> str:
+    """The world frame of a UR arm (:func:`zrp_ga.io.ros_calibration.ur_kinematics`): ROS's
+    ``base_link`` for an arm read from a URDF from a link other than ``base_link_inertia`` or
+    ``base`` (ur_description's URDF from its root), else the controller's ``base`` (UR's DH)."""
+    if isinstance(source, URDFSource) and not source.base_link.endswith(("base_link_inertia", "base")):
+        return "base_link"
+    return "base"
+
+
+CORRECTION_COLUMNS = ["row", "joint", "parameter", "unit", "nominal", "calibrated", "correction"]
+
+
+def corrections_rows(table: DHTable, nominal: DHTable) -> list[dict]:
+    """The table of corrections beside a DH file: one row per parameter (columns
+    :data:`CORRECTION_COLUMNS`), mm and deg: each joint row's ``a, alpha, d, theta`` (and
+    ``beta`` where either table has one), then ``base`` and ``tool``: ``x, y, z``, ``roll,
+    pitch, yaw`` (the triple nearest the nominal's) and ``turn``, the angle of the rotation
+    that takes the nominal frame onto the calibrated one (:func:`zrp_ga.model.dh.corrections`).
+
+    >>> from zrp_ga.io import presets
+    >>> t = presets.get("ur10").source
+    >>> corrections_rows(t, t)[1]
+    {'row': 1, 'joint': 'shoulder_pan_joint', 'parameter': 'alpha', 'unit': 'deg', 'nominal': 90.0, 'calibrated': 90.0, 'correction': 0.0}
+    """
+    change = dh_corrections(table, nominal)
+    names = table.joint_names or tuple(f"joint_{i + 1}" for i in range(table.n))
+    scale = {"a": (1e3, "mm"), "d": (1e3, "mm"), "alpha": (180 / np.pi, "deg"), "theta": (180 / np.pi, "deg"),
+             "beta": (180 / np.pi, "deg")}  # fmt: skip
+    rows = []
+    for i in range(table.n):
+        for kind in ("a", "alpha", "d", "theta", "beta"):
+            if kind == "beta" and not (table.beta[i] or nominal.beta[i]):
+                continue
+            f, unit = scale[kind]
+            c = change[kind][i] * f
+            rows.append({"row": i + 1, "joint": names[i], "parameter": kind, "unit": unit,
+                         "nominal": float(getattr(nominal, kind)[i] * f), "calibrated": float(getattr(nominal, kind)[i] * f + c),
+                         "correction": float(c)})  # fmt: skip
+    for key in ("base", "tool"):
+        T, N = getattr(table, key), getattr(nominal, key)
+        near = so3.rpy(N[:3, :3])
+        values = [*(N[:3, 3] * 1e3), *np.degrees(near)], [*(T[:3, 3] * 1e3), *np.degrees(rpy_near(T[:3, :3], near))]
+        for k, name in enumerate(("x", "y", "z", "roll", "pitch", "yaw")):
+            rows.append({"row": key, "joint": "", "parameter": name, "unit": "mm" if k < 3 else "deg",
+                         "nominal": float(values[0][k]), "calibrated": float(values[1][k]),
+                         "correction": float(values[1][k] - values[0][k])})  # fmt: skip
+        turn = float(np.degrees(np.linalg.norm(change[f"{key}_rotvec"])))
+        rows.append({"row": key, "joint": "", "parameter": "turn", "unit": "deg", "nominal": 0.0, "calibrated": turn, "correction": turn})
+    return rows
 
 
 @functools.cache

@@ -52,6 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from zrp_ga.model import so3
+from zrp_ga.model.dh import DHTable
 from zrp_ga.model.robot import DEFAULT_LIMITS, MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
 
 Array = NDArray[np.float64]
@@ -357,6 +358,8 @@ def _patched(robot: ZRPRobot, source: URDFSource, base: Array | None, tool: Arra
             if m == last and hand_at is None:  # the tip link is the hand
                 F, added = _hand_on_last_axis(joint, hand, points[k], robot.u0[k], urdf)
                 hand_link = added[-1].get("name") if added else hand_link
+            elif not reads_small((np.linalg.inv(T) @ F)[:3, :3], _nominal_rpy(joint)):
+                F = _turn_kept(joint, T, F, robot.u0[k])
         _set_origin(joint, np.linalg.inv(T) @ F)
         T = F
     root = urdf.root
@@ -405,6 +408,24 @@ def _calibrated_frame(nominal: Array, joint: _Joint, point: Array, u: Array) -> 
     return F
 
 
+def _turn_kept(joint: _Joint, T: Array, F: Array, u: Array) -> Array:
+    """The child frame at F's origin turned from the parent frame T by the joint's nominal
+    rotation, the ``<axis>`` written in it: where the nominal ``rpy`` is next to pitch = +-90
+    degrees (:func:`reads_small`), the calibrated turn then reads in the axis, not in roll and
+    yaw of half a radian each."""
+    from lxml import etree
+
+    out = F.copy()
+    out[:3, :3] = T[:3, :3] @ joint.origin[:3, :3]
+    axis = joint.element.find("axis")
+    if axis is None:
+        axis = etree.SubElement(joint.element, "axis")
+    axis.set("xyz", _numbers(out[:3, :3].T @ u))
+    log.info("joint %r: its origin's pitch is next to +-90 degrees, where roll-pitch-yaw cannot show a small turn; "
+             "its rpy kept and its <axis> written in the calibrated frame", joint.name)
+    return out
+
+
 def _hand_on_last_axis(joint: _Joint, hand: Array, point: Array, u: Array, urdf: _Urdf) -> tuple[Array, list]:
     """The last movable joint's child is the tip: its frame is the hand's, moved onto the axis
     (revolute), the axis written in it; an end point off the axis goes to a new fixed joint."""
@@ -440,7 +461,14 @@ def _set_origin(joint: _Joint, T: Array) -> None:
     if np.abs(T[:3, 3] - joint.origin[:3, 3]).max() > 1e-14:
         origin.set("xyz", _numbers(T[:3, 3]))
     if np.abs(T[:3, :3] - joint.origin[:3, :3]).max() > 1e-14:
-        origin.set("rpy", _numbers(so3.rpy(T[:3, :3])))
+        origin.set("rpy", _numbers(rpy_near(T[:3, :3], _nominal_rpy(joint))))
+
+
+def _nominal_rpy(joint: _Joint) -> Array:
+    """The joint's ``<origin rpy>`` as written in the source (0 0 0 where absent)."""
+    origin = joint.element.find("origin")
+    text = None if origin is None else origin.get("rpy")
+    return np.zeros(3) if text is None else np.array([float(v) for v in text.split()])
 
 
 def _fixed_element(name: str, parent: str, child: str, T: Array):
@@ -516,7 +544,8 @@ def _new_urdf(robot: ZRPRobot, base: Array | None, tool: Array | None) -> str:
         lines += joint
         parent = f"link_{i + 1}"
     lines.append('  <link name="hand" />')
-    lines += _urdf_joint("hand_joint", "fixed", parent, "hand", _pose(robot.R_h0, robot.b0[-1]))
+    near = so3.rpy(robot.source.to_robot().R_h0) if isinstance(robot.source, DHTable) else None  # the nominal's hand
+    lines += _urdf_joint("hand_joint", "fixed", parent, "hand", _pose(robot.R_h0, robot.b0[-1]), near)
     if tool is not None:
         lines.append('  <link name="tool" />')
         lines += _urdf_joint("tool_joint", "fixed", "hand", "tool", tool)
@@ -524,11 +553,12 @@ def _new_urdf(robot: ZRPRobot, base: Array | None, tool: Array | None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _urdf_joint(name: str, kind: str, parent: str, child: str, T: Array) -> list[str]:
-    """The lines of a joint element (origin last before the closing tag)."""
+def _urdf_joint(name: str, kind: str, parent: str, child: str, T: Array, near: Array | None = None) -> list[str]:
+    """The lines of a joint element (origin last before the closing tag); ``near``: the rpy
+    triple to write the rotation nearest to (:func:`rpy_near`)."""
     return [f"  <joint name={_attr(name)} type={_attr(kind)}>", f"    <parent link={_attr(parent)} />",
             f"    <child link={_attr(child)} />",
-            f'    <origin xyz="{_numbers(T[:3, 3])}" rpy="{_numbers(so3.rpy(T[:3, :3]))}" />', "  </joint>"]
+            f'    <origin xyz="{_numbers(T[:3, 3])}" rpy="{_numbers(rpy_near(T[:3, :3], near))}" />', "  </joint>"]
 
 
 @functools.lru_cache(maxsize=1024)
@@ -550,3 +580,31 @@ def check_transform(T: ArrayLike, what: str) -> Array:
     if np.abs(R.T @ R - np.eye(3)).max() > 1e-9 or np.linalg.det(R) < 0 or np.abs(T[3] - [0, 0, 0, 1]).max() > 0:
         raise ValueError(f"{what}: not a rigid transform (rotation part not orthonormal or last row not 0 0 0 1)")
     return T
+
+
+def rpy_near(R: ArrayLike, near: ArrayLike | None = None) -> Array:
+    """Roll, pitch, yaw (3,), rad, of the rotation R (3, 3) (URDF's ``Rz(yaw) Ry(pitch) Rx(roll)``,
+    :func:`zrp_ga.model.so3.rpy`), the triple of its two families (``(r, p, y)`` and
+    ``(r + pi, pi - p, y + pi)``) and their turns by 2 pi nearest ``near`` (3,), rad (largest
+    difference), so that a rotation near a nominal triple reads as that triple plus a small
+    change. Next to pitch = +-90 degrees no triple may be near: see :func:`reads_small`.
+
+    >>> np.round(rpy_near(Rotation.from_euler("xyz", [3.0, 0.1, -3.0]).as_matrix(), [3.0, 0.1, 3.3]), 6).tolist()
+    [3.0, 0.1, 3.283185]
+    """
+    r = so3.rpy(R)
+    if near is None:
+        return r
+    near = np.asarray(near, dtype=float)
+    candidates = [near + np.angle(np.exp(1j * (c - near))) for c in (r, r + [np.pi, np.pi - 2 * r[1], np.pi])]
+    return min(candidates, key=lambda c: float(np.abs(c - near).max())) + 0.0
+
+
+def reads_small(R: ArrayLike, near: ArrayLike, factor: float = 10.0) -> bool:
+    """Whether :func:`rpy_near` writes R as ``near`` plus changes of at most ``factor`` times the
+    angle between R and the rotation of ``near`` (1e-12 rad at least): false next to pitch =
+    +-90 degrees, where roll and yaw take large opposite turns for a small turn about the
+    rotated z axis."""
+    R0 = Rotation.from_euler("xyz", near).as_matrix()
+    angle = np.linalg.norm(Rotation.from_matrix(R0.T @ np.asarray(R)).as_rotvec())
+    return float(np.abs(rpy_near(R, near) - np.asarray(near)).max()) <= factor * angle + 1e-12

@@ -34,6 +34,10 @@ ZRP direction, so that q turns the same way). Choices where the geometry leaves 
 - last frame: standard DH puts frame n's origin at the end point and its z axis along the hand's
   z axis where DH allows; modified DH puts frame n on axis n at the foot of the perpendicular
   from the end point. ``tool`` holds the rest of the hand pose.
+
+With a nominal table (``to_dh(robot, like=nominal)``, :func:`nominal_tables`) these choices are
+the nominal's instead (:func:`_walk_like`): each row reads as the nominal row plus a small
+correction (:func:`corrections`), which a controller's DH data and a reviewer can take.
 """
 
 from __future__ import annotations
@@ -129,6 +133,10 @@ class DHTable:
         """Row i (from 0): (a, alpha, d, theta, beta)."""
         return self.a[i], self.alpha[i], self.d[i], self.theta[i], self.beta[i]
 
+    def link(self, i: int) -> Array:
+        """(4, 4) transform of row i (from 0) at q = 0, frame i-1 to frame i (module docstring)."""
+        return _row_link(self.convention, self.row(i))
+
     def forward(self, q: ArrayLike) -> Array:
         """Hand pose ``base A_1 ... A_n tool`` at joint values q (n,) or (M, n): (4, 4) or (M, 4, 4)."""
         q = kinematics.check_q(q, self.n)
@@ -170,7 +178,7 @@ class DHMismatch:
 
 def to_dh(
     robot: ZRPRobot, convention: str = "dh", parallel_tol: float = PARALLEL_TOL, samples: int = 200, seed: int = 0,
-    max_offset: float | None = None, base_x: ArrayLike | None = None,
+    max_offset: float | None = None, base_x: ArrayLike | None = None, like: DHTable | None = None,
 ) -> tuple[DHTable, DHMismatch]:
     """The DH (``"dh"``) or modified-DH (``"mdh"``) table of a ZRP arm and what it misses.
 
@@ -182,29 +190,51 @@ def to_dh(
     frame's x axis is this direction made perpendicular to axis 1 (default: the world axis most
     perpendicular to axis 1, which jumps where two tie).
 
+    ``like`` (a table of an arm near ``robot``, typically its nominal table): the table in that
+    table's conventions instead (its convention; ``max_offset`` and ``base_x`` unused), row by
+    row the nominal's plus a small correction (:func:`_walk_like`).
+
     >>> from zrp_ga.io import presets
     >>> table, mismatch = to_dh(presets.get("puma560"))
     >>> np.round(np.degrees(table.alpha)).tolist(), mismatch.position_m < 1e-15
     ([90.0, 0.0, -90.0, 90.0, -90.0, 0.0], True)
     """
-    return _to_dh(robot, convention, parallel_tol, samples, seed, max_offset, base_x)
+    return _to_dh(robot, convention, parallel_tol, samples, seed, max_offset, base_x, like=like)
 
 
-def tables(robot: ZRPRobot, samples: int = 200, seed: int = 0) -> dict[str, tuple[DHTable, DHMismatch]]:
-    """``{convention: to_dh(robot, convention, samples=samples, seed=seed)}`` for both
-    conventions, the arm's own hand poses at the joint samples computed once for both.
+def tables(
+    robot: ZRPRobot, samples: int = 200, seed: int = 0, like: dict[str, DHTable] | None = None
+) -> dict[str, tuple[DHTable, DHMismatch]]:
+    """``{convention: to_dh(robot, convention, samples=samples, seed=seed, like=like[convention])}``
+    for both conventions (``like``: None, or a table by convention, as in :func:`nominal_tables`),
+    the arm's own hand poses at the joint samples computed once for both.
 
     >>> from zrp_ga.io import presets
     >>> sorted(tables(presets.get("puma560"), samples=5))
     ['dh', 'mdh']
     """
     reference = _reference(robot, samples, seed)
-    return {c: _to_dh(robot, c, PARALLEL_TOL, samples, seed, None, None, reference) for c in CONVENTIONS}
+    like = like or {}
+    return {c: _to_dh(robot, c, PARALLEL_TOL, samples, seed, None, None, reference, like.get(c)) for c in CONVENTIONS}
+
+
+def nominal_tables(nominal: ZRPRobot) -> dict[str, DHTable]:
+    """The tables of the nominal arm by convention, as a calibrated arm's are to follow
+    (``tables(calibrated, like=nominal_tables(nominal))``): the table the arm was read from
+    (``nominal.source``, a :class:`DHTable`) for its convention, :func:`to_dh`'s own for the other.
+
+    >>> from zrp_ga.io import presets
+    >>> nominal_tables(presets.get("ur10"))["dh"] is presets.get("ur10").source
+    True
+    """
+    source = nominal.source if isinstance(nominal.source, DHTable) else None
+    return {c: source if source is not None and source.convention == c else to_dh(nominal, c, samples=1)[0]
+            for c in CONVENTIONS}  # fmt: skip
 
 
 def _to_dh(
     robot: ZRPRobot, convention: str, parallel_tol: float, samples: int, seed: int, max_offset: float | None,
-    base_x: ArrayLike | None, reference: tuple[Array, Array, Array] | None = None,
+    base_x: ArrayLike | None, reference: tuple[Array, Array, Array] | None = None, like: DHTable | None = None,
 ) -> tuple[DHTable, DHMismatch]:
     """:func:`to_dh`; ``reference``: ``_reference(robot, samples, seed)`` if already computed."""
     if convention not in CONVENTIONS:
@@ -212,9 +242,14 @@ def _to_dh(
     points = np.cumsum(robot.b0, axis=0)  # points[i]: on axis i+1; points[n]: the end point
     hand = np.eye(4)
     hand[:3, :3], hand[:3, 3] = robot.R_h0, points[-1]
-    walk = _walk_dh if convention == "dh" else _walk_mdh
-    size = float(np.linalg.norm(robot.b0, axis=1).sum()) if max_offset is None else max_offset
-    base, rows, axis_frames, far = walk(points, robot.u0, hand, parallel_tol, size, base_x)
+    if like is not None:
+        _check_like(robot, like)
+        convention = like.convention
+        base, rows, axis_frames, far = _walk_like(points, robot.u0, hand, like, parallel_tol)
+    else:
+        walk = _walk_dh if convention == "dh" else _walk_mdh
+        size = float(np.linalg.norm(robot.b0, axis=1).sum()) if max_offset is None else max_offset
+        base, rows, axis_frames, far = walk(points, robot.u0, hand, parallel_tol, size, base_x)
     a, alpha, d, theta, beta = _tidy(np.array(rows).T)
     table = _table(convention, a, alpha, d, theta, robot, _tidy(base), beta)
     last = table.forward(np.zeros(robot.n))  # frame n of the tidied table
@@ -352,6 +387,164 @@ def _walk_mdh(
         T = T @ _row_link("mdh", rows[-1])
         frames.append(T)
     return base, rows, frames + [T], {i + 1: away for i, away in far.items()}
+
+
+# --- the walk in a nominal table's conventions ------------------------------------------------
+def _check_like(robot: ZRPRobot, like: DHTable) -> None:
+    if not isinstance(like, DHTable) or like.joint_types != robot.joint_types:
+        got = like.joint_types if isinstance(like, DHTable) else type(like).__name__
+        raise ValueError(f"like: expected the table of an arm with joints {robot.joint_types}, got {got}")
+
+
+def _frames_at_zero(table: DHTable) -> list[Array]:
+    """The table's frames 0..n (world, q = 0): base, then each row's link after the other."""
+    frames = [np.array(table.base)]
+    for i in range(table.n):
+        frames.append(frames[-1] @ _row_link(table.convention, table.row(i)))
+    return frames
+
+
+def _like_parallel(like: DHTable, frames: list[Array], i: int, tol: float) -> bool:
+    """Whether the nominal's row for the pair of axes i, i+1 (from 0) is a parallel-axes row: a
+    Hayati row, or axes within ``tol`` of parallel (DH: the z axes of frames i and i+1; modified
+    DH: of frames i+1 and i+2)."""
+    k = i if like.convention == "dh" else i + 1
+    return bool(like.beta[k] != 0.0) or _line_angle(frames[k][:3, 2], frames[k + 1][:3, 2]) < tol
+
+
+def onto_axis(F: Array, point: Array, u: Array) -> Array:
+    """Frame F turned by the smallest rotation that takes its z axis onto u, its origin moved to
+    the foot of the perpendicular from it onto the line (point, u)."""
+    out = F.copy()
+    z = F[:3, 2]
+    c = _cross(z, u)
+    angle = np.arctan2(_norm(c), np.dot(z, u))
+    if _norm(c) > 0.0:
+        k = c / _norm(c)
+        K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+        out[:3, :3] = (np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K) @ F[:3, :3]  # Rodrigues
+    out[:3, 3] = point + np.dot(F[:3, 3] - point, u) * u
+    return out
+
+
+def _near_row(row: tuple[float, ...], nominal: tuple[float, ...]) -> tuple[float, ...]:
+    """(a, alpha, d, theta, beta) with each angle the one of its turns nearest the nominal's."""
+    a, alpha, d, theta, beta = row
+    near = lambda x, x0: x0 + float(np.angle(np.exp(1j * (x - x0))))
+    return a, near(alpha, nominal[1]), d, near(theta, nominal[3]), near(beta, nominal[4])
+
+
+def _walk_like(
+    points: Array, u0: Array, hand: Array, like: DHTable, tol: float
+) -> tuple[Array, list, list[Array], dict[int, float]]:
+    """The walk of :func:`_walk_dh` or :func:`_walk_mdh` with the nominal table ``like``'s
+    choices, so that each row reads as the nominal's plus a small correction:
+
+    - the base frame is the nominal's, turned by the smallest rotation that puts joint 1's
+      axis where the arm has it and moved onto that axis (modified DH: row 1's
+      ``Rx(alpha_0) Tx(a_0) Ry(beta_0)`` stays the nominal's and the base carries the rest);
+      a base turn of the nominal stays in the base, not in row 1;
+    - each common normal's sign (hence the signs of ``a``, ``alpha``, ``theta``) is the one
+      nearest the nominal frame's x axis (world, q = 0), and every angle is the turn of itself
+      nearest the nominal's (270 degrees stays 270, not -90);
+    - the nominal's parallel-axes rows (Hayati, or axes within ``tol`` of parallel) are Hayati
+      rows with the nominal's ``d`` held (so ``d`` reads as the nominal's exactly);
+    - the last frame is the DH frame nearest the arm's hand with the nominal tool taken off, so
+      that the tool too is the nominal's plus a correction.
+
+    Returns what the walks return (base, rows, axis frames, Hayati rows' common-normal distances)."""
+    n, dh = len(u0), like.convention == "dh"
+    nominal = _frames_at_zero(like)
+    target = hand @ np.linalg.inv(like.tool)  # where frame n belongs, the nominal tool kept
+    if dh:
+        T = onto_axis(nominal[0], points[0], u0[0])
+    else:  # row 1 reaches axis 1 as the nominal's does: the base carries the correction
+        reach = _row_link("mdh", (like.a[0], like.alpha[0], 0.0, 0.0, like.beta[0]))
+        T = onto_axis(nominal[0] @ reach, points[0], u0[0]) @ np.linalg.inv(reach)
+    base, frames, rows, far = T, [T], [], {}
+    for i in range(n):
+        nom = like.row(i)
+        row = (_like_dh_row if dh else _like_mdh_row)(T, i, points, u0, target, like, nominal, tol, far)
+        rows.append(_near_row(row, nom))
+        T = T @ _row_link(like.convention, rows[-1])
+        frames.append(T)
+    return base, rows, frames if dh else frames[1:] + [T], far
+
+
+def _like_dh_row(T: Array, i: int, points: Array, u0: Array, target: Array, like: DHTable, nominal: list[Array],
+                 tol: float, far: dict[int, float]) -> tuple[float, ...]:  # fmt: skip
+    """Standard DH row i (from 0) from frame T (z on axis i) in the nominal's choices (:func:`_walk_like`)."""
+    n = len(u0)
+    o, z, x_nominal = T[:3, 3], T[:3, 2], nominal[i + 1][:3, 0]
+    if i == n - 1:  # the DH frame nearest the target: Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta_nominal)
+        return (*_dh_row(np.linalg.inv(T) @ target @ _rot(1, -like.beta[i])), like.beta[i])
+    if _like_parallel(like, nominal, i, tol):  # Hayati, d held: the plane through o + d z
+        start = o + like.d[i] * z
+        cross = _crossing(start, z, points[i + 1], u0[i + 1])
+        normal = _normal_towards(cross - start, x_nominal)
+        theta = np.arctan2(np.dot(normal, T[:3, 1]), np.dot(normal, T[:3, 0]))
+        a = np.dot(cross - start, normal)
+        alpha, beta = _tilt(T @ _row_link("dh", (a, 0.0, like.d[i], theta, 0.0)), u0[i + 1])
+        far[i] = _normal_distance(o, z, points[i + 1], u0[i + 1])
+        return a, alpha, like.d[i], theta, beta
+    _, foot, normal = _common_normal(o, z, points[i + 1], u0[i + 1], o, x_nominal, 0.0)
+    return (*_dh_row(np.linalg.inv(T) @ _frame(foot, normal, u0[i + 1])), 0.0)
+
+
+def _like_mdh_row(T: Array, i: int, points: Array, u0: Array, target: Array, like: DHTable, nominal: list[Array],
+                  tol: float, far: dict[int, float]) -> tuple[float, ...]:  # fmt: skip
+    """Modified DH row i (from 0) from frame T (frame i) in the nominal's choices
+    (:func:`_walk_like`): reach axis i, then place frame i+1 on it."""
+    n = len(u0)
+    if i == 0:
+        reach = (like.a[0], like.alpha[0], 0.0, 0.0, like.beta[0])
+    else:
+        reach = _mdh_reach(T, points[i], u0[i], hayati=_like_parallel(like, nominal, i - 1, tol))
+    M = T @ _row_link("mdh", reach)
+    p, z, x_nominal = M[:3, 3], M[:3, 2], nominal[i + 1][:3, 0]
+    if i == n - 1:
+        F = target
+    elif _like_parallel(like, nominal, i, tol):  # frame i+1 at the nominal d, x towards axis i+1's crossing
+        foot = p + like.d[i] * z
+        F = _frame(foot, _normal_towards(_crossing(foot, z, points[i + 1], u0[i + 1]) - foot, x_nominal), z)
+        far[i + 1] = _normal_distance(p, z, points[i + 1], u0[i + 1])
+    else:
+        foot, _, normal = _common_normal(p, z, points[i + 1], u0[i + 1], p, x_nominal, 0.0)
+        F = _frame(foot, normal, z)
+    rel = np.linalg.inv(M) @ F  # Rz(theta) Tz(d), up to what a target off the axis leaves to the tool
+    return reach[0], reach[1], rel[2, 3], np.arctan2(rel[1, 0] - rel[0, 1], rel[0, 0] + rel[1, 1]), reach[4]
+
+
+def corrections(table: DHTable, nominal: DHTable) -> dict[str, Array]:
+    """What ``table`` changes in the table ``nominal`` (same convention and joints): ``a``,
+    ``alpha``, ``d``, ``theta``, ``beta`` (n,), m and rad, each angle's the smallest turn; for
+    ``base`` and ``tool``, ``<key>_xyz`` (3,), m, the change of the translation, and
+    ``<key>_rotvec`` (3,), rad, the rotation vector of ``R_nominal^T R``: the correction turn in
+    the nominal frame (``R = R_nominal exp([rotvec]x)``).
+
+    >>> from zrp_ga.io import presets
+    >>> table = presets.get("ur10").source
+    >>> float(np.abs(corrections(table, table)["theta"]).max())
+    0.0
+    """
+    if table.convention != nominal.convention or table.joint_types != nominal.joint_types:
+        raise ValueError("corrections: the tables differ in convention or joints")
+    out = {}
+    for k in DH_KINDS:
+        change = getattr(table, k) - getattr(nominal, k)
+        out[k] = np.angle(np.exp(1j * change)) if k in ("alpha", "theta", "beta") else change
+    for key in ("base", "tool"):
+        T, N = getattr(table, key), getattr(nominal, key)
+        out[f"{key}_xyz"] = T[:3, 3] - N[:3, 3]
+        out[f"{key}_rotvec"] = _rotvec(N[:3, :3].T @ T[:3, :3])
+    return out
+
+
+def _rotvec(R: Array) -> Array:
+    """Rotation vector (3,), rad, of a rotation matrix (scipy's, for its accuracy at every angle)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(R).as_rotvec()
 
 
 def _mdh_reach(T: Array, point: Array, axis: Array, hayati: bool) -> tuple[float, float, float, float, float]:

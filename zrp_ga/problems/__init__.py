@@ -1,8 +1,11 @@
-"""Problem kinds: what the config's ``problem`` group builds. Each kind is one module here with a
-``build(robot, run_seed, **settings) -> Task`` function and one config file in ``conf/problem``
-naming it by ``_target_`` (and a schema in :mod:`zrp_ga.config`). ``run_seed`` is the run's
-seed; ``settings`` are the ``problem`` node's keys, its own ``seed`` among them (a named
-instance's, which the run's seed must not replace).
+"""Problem kinds: what the config's ``problem`` group builds. Each kind is one module (here, or
+anywhere Python imports it from) with a ``build(robot, run_seed, **settings) -> Task`` function,
+a ``size(robot, **settings) -> ProblemSize`` function that declares the instance's size before
+it is built (:mod:`zrp_ga.problems.size`; the run's memory and time estimate asks it,
+:mod:`zrp_ga.run.budget`), and one config file in ``conf/problem`` naming it by ``_target_``
+(the kinds here also have a schema in :mod:`zrp_ga.config`; a kind's own may check its
+settings itself). ``run_seed`` is the run's seed; ``settings`` are the ``problem`` node's keys,
+its own ``seed`` among them (a named instance's, which the run's seed must not replace).
 
 A :class:`Task` is a problem instance (:class:`zrp_ga.model.cost.CalibrationProblem`, what the
 optimisers see) with what judges its answers (:class:`zrp_ga.model.metrics.Judge`: validation poses,

@@ -43,6 +43,7 @@ from zrp_ga.model.poses import Measurements
 from zrp_ga.model.registration import Registration, register
 from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.problems import Task, half_ranges, masked
+from zrp_ga.problems.size import ProblemSize, calibration, file_rows
 
 log = logging.getLogger(__name__)
 POSE_ERRORS = "pose_errors.csv"
@@ -259,3 +260,38 @@ def gene_half_widths(layout: Layout, nominal: ZRPRobot, q: np.ndarray, reg: Regi
     if layout.hand:
         half[layout.blocks["hand"]] = min(max(reg.max_angle or 0.0, 1e-6), MAX_AXIS_RAD / c.search_scale)
     return half[free] * c.search_scale
+
+
+# --- the size of an instance, before it is built (zrp_ga.problems.size) ------------------------------
+def size(robot: ZRPRobot, **settings) -> ProblemSize:
+    """The size of the instance :func:`build` makes of ``settings``: :func:`file_size`."""
+    return file_size(robot, section(MeasuredConf, settings, "problem"))
+
+
+def file_size(robot: ZRPRobot, c: MeasuredConf) -> ProblemSize:
+    """The size of a calibration on the files of ``c``, their rows estimated from their length
+    (:func:`zrp_ga.problems.size.file_rows`; a ``validation_fraction`` of the calibration file
+    validates when there is no validation file), their text counted while it is read."""
+    rows = [file_rows(data_path(f)) if f else 0 for f in (c.calibration_file, c.validation_file)]
+    f = c.validation_fraction or 0.0
+    M, V = (rows[0], rows[1]) if rows[1] else (round(rows[0] * (1 - f)), round(rows[0] * f))
+    columns = robot.n + 3 + 3 * bool(c.use_orientation)
+    poses = ("problem.calibration_file", f"calibrate on fewer of its about {rows[0]} rows")
+    validation = ("problem.validation_file", f"validate on fewer of its about {rows[1]} rows") if rows[1] else poses
+    return _sized(robot, c, M, V, (rows[0] * columns, rows[1] * columns), {"poses": poses, "validation": validation})
+
+
+def data_size(robot: ZRPRobot, c: MeasuredConf, calib: Measurements, val: Measurements | None) -> ProblemSize:
+    """The size of :func:`from_measurements` on data in memory (``zrp_ga.calibrate``'s ``data``
+    and ``validation``)."""
+    lower = {"poses": ("data", f"calibrate on fewer of its {calib.M} rows"),
+             "validation": ("validation", f"validate on fewer of its {val.M if val is not None else 0} rows")}  # fmt: skip
+    return _sized(robot, c, calib.M, 0 if val is None else val.M, (0, 0), lower)
+
+
+def _sized(robot: ZRPRobot, c: MeasuredConf, M: int, V: int, cells: tuple[int, int], lower: dict) -> ProblemSize:
+    """A calibration of ``M`` and ``V`` measured poses; the base point (and the hand with
+    orientations) are genes; one tool (the files' tool points are not read yet: 3 genes per
+    further tool are left out)."""
+    genes = Layout(robot.n, base=True, hand=bool(c.use_orientation)).size
+    return calibration(robot.n, genes, M, V, 6 if c.use_orientation else 3, cells, lower)

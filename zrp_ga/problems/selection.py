@@ -40,8 +40,9 @@ from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.operators import subset
 from zrp_ga.problems import Task, half_ranges, masked
 from zrp_ga.problems.least_squares import levenberg_marquardt
-from zrp_ga.problems.measured import MeasuredTask, from_measurements, read_sets
+from zrp_ga.problems.measured import MeasuredTask, file_size, from_measurements, read_sets
 from zrp_ga.problems.protocol import Identifiable, SelfJudging
+from zrp_ga.problems.size import EVAL_S, FLOAT, ProblemSize, calibration
 
 Array = NDArray[np.float64]
 SELECTED = "selected_poses.csv"
@@ -340,3 +341,22 @@ def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> SelectionTask:
                          candidates=parts["candidates"], reference=c.reference, truth_x=parts["truth_x"])  # fmt: skip
     task.info.update(k=c.k, index=c.index.value, candidates=problem.n_candidates, identifiable_directions=problem.m)
     return task
+
+
+def size(robot: ZRPRobot, **settings) -> ProblemSize:
+    """The size of the instance :func:`build` makes of ``settings``: the calibration problem on
+    all N candidates (:func:`zrp_ga.problems.size.calibration`; the rows of ``calibration_file``,
+    :func:`zrp_ga.problems.measured.file_size`) and, per subset of ``k`` evaluated at once, its
+    information matrix and blocks: ``k r K + 2 K^2 + 2 k`` numbers, ``3e-8 s k K^2``."""
+    c: PoseSelectionConf = section(PoseSelectionConf, settings, "problem")
+    if c.calibration_file:
+        p, r = file_size(robot, c), 6 if c.use_orientation else 3
+    else:
+        r = 3 if c.position_only else 6
+        genes = Layout(robot.n, base=c.identify_base, hand=c.identify_hand).size
+        p = calibration(robot.n, genes, c.n_candidates, c.n_validation, r,
+                        lower={"poses": ("problem.n_candidates", "lower problem.n_candidates")})  # fmt: skip
+    K, k = p.genes, c.k
+    N = (p.rows - robot.n) // r
+    return dataclasses.replace(p, genes=k, rows=0, genome_bytes=FLOAT * (k * r * K + 2 * K * K + 2 * k),
+                               evaluation_s=EVAL_S * k * K * K, choices=N)  # fmt: skip

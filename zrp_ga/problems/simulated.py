@@ -13,6 +13,7 @@ from zrp_ga.model.layout import Layout
 from zrp_ga.model.metrics import Judge
 from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.problems import Task, half_ranges, masked
+from zrp_ga.problems.size import ProblemSize, calibration
 
 
 def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> Task:
@@ -40,3 +41,12 @@ def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> Task:
     name = c.name or f"{robot.name}-{c.n_poses}pose{'s' if c.n_poses > 1 else ''}-{c.cost.value}-seed{instance_seed}"
     return Task(name, problem, Judge(layout, robot, validation, sim.true_x, projector), robot,
                 info | {"seed": instance_seed})  # fmt: skip
+
+
+def size(robot: ZRPRobot, **settings) -> ProblemSize:
+    """The size of the instance :func:`build` makes of ``settings``, before it is built
+    (:func:`zrp_ga.problems.size.calibration`): the genes of its whole layout (fixed ones
+    included: the Jacobians hold them), ``n_poses`` and ``n_validation`` poses."""
+    c: SimulatedConf = section(SimulatedConf, settings, "problem")
+    genes = Layout(robot.n, base=c.identify_base, hand=c.identify_hand).size
+    return calibration(robot.n, genes, c.n_poses, c.n_validation, 3 if c.position_only else 6)

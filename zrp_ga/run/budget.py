@@ -1,139 +1,192 @@
-"""The size of a run, estimated before any work: memory and time from the arm's joints, the
-poses (or measurement-file rows), the population and the evaluation budget. A run whose
-estimate does not fit the memory this machine has available is refused with one line that
-gives the estimate and the setting to lower, before anything is read or allocated.
+"""The size of a run, estimated before any work: memory and time, from what the problem kind
+and the optimiser declare. A run (or a sweep's largest job) whose estimate does not fit the
+memory this process may use is refused with one line that gives the estimate, the limit that
+binds and the setting to lower, before anything is read or allocated.
 
-The memory estimate adds what the largest steps hold, in float64 (8 bytes), with K genes
-(``6n`` plus 3 for the base point, the hand or each further tool), ``r`` rows per pose (3 for
-positions, 6 with orientations), M calibration and V validation poses, ``R = r M + n`` rows:
+What is counted. The problem kind declares its instance's size (``size(robot, **settings)`` in
+the kind's module, beside ``build``: :class:`zrp_ga.problems.size.ProblemSize`: genes, what the
+instance holds, bytes and seconds per genome evaluated), the optimiser what it holds and
+evaluates on a problem of that size (:meth:`zrp_ga.algorithms.Algorithm.size`:
+:class:`zrp_ga.algorithms.AlgorithmSize`: the genomes evaluated at once, the evaluations, its
+own memory). The estimate is the kind's parts (``poses``, ``validation``, ``parameters``, ...)
+and the ``population`` (the genomes evaluated at once, each with what the kind holds per
+evaluation, and what the optimiser holds), all times 1.25 for what the sum leaves out
+(measured peaks, tracemalloc: 0.9 to 1.3 of the sum on simulated, measured and 200-joint runs,
+tests/test_bad_inputs_more.py). A kind that declares nothing (no ``size`` in its module) is
+counted as a calibration of the arm's whole genome (6n + 6 genes) on its ``n_poses`` poses
+(1 if it has no such setting) and ``n_validation`` validation poses (0), with orientations; an
+optimiser that declares nothing as ``population.mu + population.lambda_`` genomes; the estimate
+says so (:attr:`Estimate.notes`, in the refusal's line). The time is said, not enforced: a run
+estimated to take more than 10 minutes is announced.
 
-- **poses**: the pose Jacobians ``(M, 6, K)`` in four working copies (the chain rule, the
-  reshape, the stacking, the weights), the forward kinematics' rotations ``(M, n + 1, 3, 3)``
-  twice, the stacked Jacobian ``(R, K)`` the problem keeps and two more in the identifiability
-  SVD; the text of the measurement file while it is read (about 160 bytes a cell);
-- **validation**: the same Jacobians and file text for the validation poses;
-- **parameters**: five ``(K, K)`` matrices (the SVD's ``V``, the identity whose rows name
-  unidentifiable genes, the null-space basis and its QR, the projector on the identifiable
-  directions);
-- **population**: P genomes at once, each with two residual vectors ``(R,)`` (the linear cost's
-  ``y - X J^T``), its genes twice and DEAP's objects (about 600 bytes); pose selection: the
-  information matrices ``(m, m)`` and their per-pose blocks; CMA-ES: a ``(P, P)`` matrix.
+The memory this process may use (:func:`memory_limit`) is the least of what the machine has
+available (``MemAvailable`` of ``/proc/meminfo``, elsewhere ``os.sysconf``'s free pages), what
+the process's address-space and data-segment limits leave (``ulimit -v``, ``ulimit -d``:
+``resource.getrlimit`` less the ``VmSize``, ``VmData`` the process maps already and 256 MB
+for what its code maps later) and what its
+cgroups' memory limits leave (a container's, a cluster job's: cgroup v2 ``memory.max`` less
+``memory.current``, v1 ``memory.limit_in_bytes`` less ``memory.usage_in_bytes``, each less the
+inactive file pages of ``memory.stat``, which the kernel reclaims before it fails an allocation,
+as the kubelet counts a working set; every cgroup from the process's up to the root). The
+environment variable ``ZRP_GA_MEMORY`` (``8G``, ``500M``, bytes) replaces all of them, to allow
+a run the estimate overrates or to keep a shared machine's runs smaller.
 
-All of it times 1.25 for what the sum leaves out (measured peaks, tracemalloc: 0.9 to 1.3 of the
-sum on simulated, measured and 200-joint runs, tests/test_bad_inputs_more.py).
-
-The time estimate adds the Jacobians (``1.5e-5 s`` per pose and gene), the SVDs, least squares
-and null-space bookkeeping (``1.2e-8 s K^3`` plus ``5e-8 s R K min(R, K)``), the cost evaluations
-(``3e-8 s`` per evaluation, pose and joint, or per row and gene for the linear cost, plus
-``3e-4 s`` for DEAP's handling of the individual) and the file reading (``2e-4 s`` per row), constants measured on a loaded 2-core machine (a 500-joint
-arm: 400 s; a 100 000-row file: 130 s). It is said, not enforced.
-
-Available memory: ``MemAvailable`` of ``/proc/meminfo`` (elsewhere ``os.sysconf``'s free
-pages); the environment variable ``ZRP_GA_MEMORY`` (``8G``, ``500M``, bytes) replaces it, to
-allow a run the estimate overrates or to keep a shared machine's runs smaller.
-
->>> s = Size(joints=6, genes=42, poses=30, validation=100, rows_per_pose=6, population=40, evaluations=460)
->>> round(memory(s) / 1e6, 1), round(seconds(s), 1)
+>>> from zrp_ga.algorithms import AlgorithmSize
+>>> from zrp_ga.problems.size import calibration
+>>> e = estimate(calibration(n=6, genes=42, poses=30, validation=100, rows_per_pose=6), AlgorithmSize(40, 460, 40 * 1272))
+>>> round(e.bytes / 1e6, 1), round(e.seconds, 1)
 (2.0, 0.2)
 """
 
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import logging
 import math
 import os
-import stat
-from pathlib import Path
+from collections.abc import Mapping
+from pathlib import Path, PurePosixPath
 from typing import Any
+
+from zrp_ga.algorithms import AlgorithmSize, evaluations, genomes_bytes
+from zrp_ga.problems.size import Lower, ProblemSize, calibration
 
 log = logging.getLogger(__name__)
 
 ENV = "ZRP_GA_MEMORY"
-FLOAT = 8  # bytes
-JACOBIAN_COPIES = 4
-CELL_BYTES = 160  # a measurement file's cell while pandas holds it as text (measured: ~125)
-INDIVIDUAL_BYTES = 600  # a DEAP individual's objects beside its genes
 MARGIN = 1.25  # for what the sum leaves out (Python objects, short-lived copies): measured peaks were 0.9-1.3 of it
-INDIVIDUAL_S = 3e-4  # per evaluation: DEAP's copying, selection and variation of an individual
-FILE_ROW_S = 2e-4
-JACOBIAN_S = 1.5e-5  # per pose and gene: every Jacobian of a run (problem, ranges, projector, judge)
-SVD_S = 1.2e-8  # per K^3
-ROWS_S = 5e-8  # per R K min(R, K): SVDs and least squares of the stacked Jacobian
-EVAL_S = 3e-8  # per evaluation, pose and joint (or row and gene)
-SAMPLE_BYTES = 64 * 1024  # of a file, read to estimate its rows
 LONG_S = 600  # a run estimated to take longer is announced
+PROC, CGROUP = Path("/proc"), Path("/sys/fs/cgroup")
+UNLIMITED = 2**60  # a cgroup v1 limit at least this large is none (the kernel writes 2^63 less a page)
+LATER_MAPPED = 256 * 2**20  # address space a run maps after its check (numba's compiler, thread stacks): 110 MB measured
 
 
 @dataclasses.dataclass(frozen=True)
-class Size:
-    """What a run's size depends on: ``joints`` n, ``genes`` K, calibration ``poses`` M and
-    ``validation`` poses V, ``rows_per_pose`` r (3 or 6), genomes evaluated at once
-    (``population``), cost ``evaluations`` in all (None: not known), measurement-file cells to
-    read (``cells``: calibration, validation), for pose selection the ``subset`` size k (0: a
-    calibration), and whether the optimiser is ``cmaes`` (the ``cma`` package holds a
-    ``(lambda, lambda)`` matrix)."""
+class Estimate:
+    """A run's estimate: ``memory`` (bytes, the margin included) and ``time`` (s) by part, the
+    setting that drives each part (``lower``: part -> (config key, what to do)) and ``notes``
+    saying what was counted generically (a kind or optimiser that declares no size)."""
 
-    joints: int
-    genes: int
-    poses: int
-    validation: int
-    rows_per_pose: int
-    population: int
-    evaluations: int | None
-    cells: tuple[int, int] = (0, 0)
-    subset: int = 0
-    cmaes: bool = False
+    memory: dict[str, float]
+    time: dict[str, float]
+    lower: dict[str, Lower]
+    notes: tuple[str, ...] = ()
 
     @property
-    def rows(self) -> int:
-        return self.rows_per_pose * self.poses + self.joints
+    def bytes(self) -> float:
+        return sum(self.memory.values())
+
+    @property
+    def seconds(self) -> float:
+        return sum(self.time.values())
 
 
-def memory_parts(s: Size) -> dict[str, float]:
-    """Bytes by what drives them: ``poses``, ``validation``, ``parameters``, ``population``
-    (module docstring)."""
-    K, n, R = s.genes, s.joints, s.rows
-    jac = lambda M: FLOAT * (JACOBIAN_COPIES * 6 * M * K + 2 * 9 * M * (n + 1))
-    if s.subset:  # pose selection: each genome's information matrix and its blocks
-        per_genome = FLOAT * (s.subset * s.rows_per_pose * K + 2 * K * K + 2 * s.subset)
+def estimate(problem: ProblemSize, algorithm: AlgorithmSize, notes: tuple[str, ...] = ()) -> Estimate:
+    """The estimate of a run of ``algorithm`` on ``problem`` (module docstring)."""
+    memory = dict(problem.held_bytes)
+    memory["population"] = algorithm.population * problem.genome_bytes + algorithm.held_bytes
+    time = dict(problem.build_s)
+    if algorithm.evaluations:
+        time["population"] = algorithm.evaluations * (problem.evaluation_s + algorithm.evaluation_s)
+    return Estimate({k: MARGIN * v for k, v in memory.items()}, time, {**problem.lower, "population": algorithm.lower}, notes)
+
+
+# --- what the problem kind and the optimiser declare -----------------------------------------------
+def _settings(node: Any) -> dict[str, Any]:
+    """A config node's settings (a mapping's items or a dataclass's fields), ``_target_`` left out."""
+    if dataclasses.is_dataclass(node):
+        items = {f.name: getattr(node, f.name) for f in dataclasses.fields(node)}
     else:
-        per_genome = FLOAT * (2 * R + 2 * K) + INDIVIDUAL_BYTES
-    parts = {
-        "poses": jac(s.poses) + FLOAT * 3 * R * K + CELL_BYTES * s.cells[0],
-        "validation": jac(s.validation) + CELL_BYTES * s.cells[1],
-        "parameters": FLOAT * 5 * K * K,
-        "population": s.population * per_genome + FLOAT * s.cmaes * s.population**2,
-    }
-    return {k: MARGIN * v for k, v in parts.items()}
+        items = {k: node[k] for k in node}
+    return {str(k): v for k, v in items.items() if not str(k).startswith("_")}
 
 
-def memory(s: Size) -> float:
-    """Bytes the run needs at most (module docstring)."""
-    return sum(memory_parts(s).values())
+def problem_size(node: Any, robot: Any) -> tuple[ProblemSize, tuple[str, ...]]:
+    """What the problem kind of config node ``node`` (its ``_target_``) declares for ``robot``:
+    ``size(robot, **settings)`` of the kind's module; else the generic count (module
+    docstring) and a note saying so."""
+    target = str(getattr(node, "_target_", "") or "")
+    module = target.rpartition(".")[0]
+    try:
+        declared = getattr(importlib.import_module(module), "size", None) if module else None
+    except ImportError:  # the build names what is missing
+        declared = None
+    settings = _settings(node)
+    if callable(declared):
+        try:
+            return declared(robot, **settings), ()
+        except TypeError as exc:  # a setting its size() does not take (its build would not either)
+            from zrp_ga.config import ConfigError
+
+            raise ConfigError(f"problem: {module}.size: {exc}") from None
+    genes = _generic_genes(robot.n)
+    poses, validation = _count(settings.get("n_poses"), 1), _count(settings.get("n_validation"), 0)
+    note = (f"problem kind {module or target!r} declares no size (no size() beside its build): counted as a calibration "
+            f"of {genes} genes on {poses} pose(s) and {validation} validation pose(s)")  # fmt: skip
+    return calibration(robot.n, genes, poses, validation, 6), (note,)
 
 
-def seconds(s: Size) -> float:
-    """Seconds the run takes, roughly (module docstring); without a known number of
-    evaluations, the time before the optimiser's."""
-    K, n, R = s.genes, s.joints, s.rows
-    t = JACOBIAN_S * (s.poses + s.validation) * K + SVD_S * K**3 + ROWS_S * R * K * min(R, K)
-    t += FILE_ROW_S * sum(s.cells) / max(n + 3, 1)
-    if s.evaluations:
-        t += s.evaluations * (INDIVIDUAL_S + EVAL_S * (s.subset * K * K if s.subset else max(s.poses * n, R * K / 30)))
-    return t
+def _generic_genes(n: int) -> int:
+    from zrp_ga.model.layout import Layout
+
+    return Layout(n, base=True, hand=True).size
 
 
-def _slowest(s: Size) -> str:
-    """Which part of the estimate drives the time: ``parameters`` (the SVDs), ``poses`` or
-    ``population`` (the evaluations)."""
-    K = s.genes
-    parts = {
-        "parameters": SVD_S * K**3,
-        "poses": JACOBIAN_S * s.poses * K + ROWS_S * s.rows * K * min(s.rows, K) + FILE_ROW_S * s.cells[0] / (s.joints + 3),
-    }
-    parts["population"] = seconds(s) - sum(parts.values())
-    return max(parts, key=parts.get)
+def _count(value: Any, default: int) -> int:
+    try:
+        return max(int(value), 0)
+    except (TypeError, ValueError):
+        return default
+
+
+def algorithm_size(algorithm: Any, cfg: Any, problem: ProblemSize) -> tuple[AlgorithmSize, tuple[str, ...]]:
+    """What ``algorithm`` (built from ``cfg.algorithm``) declares on ``problem``
+    (:meth:`zrp_ga.algorithms.Algorithm.size`); else ``population.mu + population.lambda_``
+    genomes and a note saying so."""
+    declare = getattr(algorithm, "size", None)
+    declared = declare(problem) if callable(declare) else None
+    if declared is not None:
+        return declared, ()
+    pop = getattr(cfg, "population", None)
+    mu, lam = (_count(getattr(pop, k, None), 1) for k in ("mu", "lambda_"))
+    evals = evaluations(getattr(pop, "generations", None), getattr(pop, "max_evals", None), mu, lam)
+    note = (f"optimiser {type(algorithm).__module__}.{type(algorithm).__name__} declares no size (no size() method): "
+            f"counted as population.mu + population.lambda_ = {mu + lam} genomes")  # fmt: skip
+    return AlgorithmSize(mu + lam, evals, genomes_bytes(mu + lam, problem.genes)), (note,)
+
+
+def of_config(cfg: Any, robot: Any, problem: ProblemSize | None = None, algorithm: Any = None) -> Estimate:
+    """The estimate of the run of config ``cfg`` on ``robot`` (a ZRPRobot): its problem kind's
+    declared size (``problem``: given instead, for data in memory) and its optimiser's
+    (``algorithm``: built already; else built from ``cfg.algorithm`` here, which checks its settings)."""
+    notes: tuple[str, ...] = ()
+    if problem is None:
+        problem, notes = problem_size(cfg.problem, robot)
+    if algorithm is None:
+        from zrp_ga import config
+
+        algorithm = config.instantiate(cfg.algorithm, "algorithm", root=cfg)
+    sized, more = algorithm_size(algorithm, cfg, problem)
+    return estimate(problem, sized, notes + more)
+
+
+def check_config(cfg: Any, robot: Any, available: float | Limit | None = None, problem: ProblemSize | None = None) -> Estimate:
+    """:func:`check` the run of ``cfg`` on ``robot`` (:func:`of_config`) before its problem is built."""
+    e = of_config(cfg, robot, problem)
+    check(e, available)
+    return e
+
+
+# --- the memory this process may use ---------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class Limit:
+    """Bytes this process may use by one account: ``says`` which (for the refusal's line),
+    ``hint`` how to raise it."""
+
+    bytes: float
+    says: str
+    hint: str = ""
 
 
 def parse_bytes(text: str) -> float:
@@ -149,42 +202,131 @@ def parse_bytes(text: str) -> float:
     return value
 
 
-def available_bytes(environ: dict | None = None) -> float:
-    """Memory this run may use: ``ZRP_GA_MEMORY`` if set, else what the kernel says is
-    available (``MemAvailable``), else the free pages; inf when none can be read."""
+def memory_limit(environ: Mapping[str, str] | None = None, proc: Path = PROC, cgroup: Path = CGROUP) -> Limit:
+    """The memory this process may use, and which account binds (module docstring):
+    ``ZRP_GA_MEMORY`` if set, else the least of :func:`limits`; inf when none can be read.
+    ``proc``, ``cgroup``: where the kernel's files are (``/proc``, ``/sys/fs/cgroup``)."""
     environ = os.environ if environ is None else environ
     if environ.get(ENV):
-        return parse_bytes(environ[ENV])
-    try:
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemAvailable:"):
-                return float(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (OSError, ValueError, AttributeError):
-        return math.inf
+        b = parse_bytes(environ[ENV])
+        return Limit(b, f"{ENV} allows {_human(b)}", f"or raise {ENV}")
+    found = limits(proc, cgroup)
+    return min(found, key=lambda lim: lim.bytes) if found else Limit(math.inf, "no memory limit was found")
 
 
-def file_rows(path: str | Path) -> int:
-    """The rows of a text file, estimated from its size and the length of its first lines (0
-    when it is no regular file or cannot be read: its reader says why; a FIFO is not opened,
-    which would wait for a writer)."""
+def available_bytes(environ: Mapping[str, str] | None = None) -> float:
+    """Bytes this process may use (:func:`memory_limit`), for other code's estimates."""
+    return memory_limit(environ).bytes
+
+
+def limits(proc: Path = PROC, cgroup: Path = CGROUP) -> list[Limit]:
+    """Every account of this process's memory that could be read: the machine's available
+    memory, the address-space and data-segment limits, every cgroup memory limit above it."""
+    machine = _machine(proc)
+    return ([machine] if machine else []) + _rlimits(proc) + _cgroups(proc, cgroup)
+
+
+def _machine(proc: Path) -> Limit | None:
+    b = _fields(proc / "meminfo").get("MemAvailable")
+    if b is None:
+        try:
+            b = float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+        except (OSError, ValueError, AttributeError):
+            return None
+    return Limit(b, f"this machine has {_human(b)} available", f"or set {ENV} to allow more")
+
+
+def _fields(path: Path) -> dict[str, float]:
+    """``Name: value kB`` lines (``/proc/meminfo``, ``/proc/self/status``) as bytes."""
     try:
-        st = os.stat(path)
-        if not stat.S_ISREG(st.st_mode):
-            return 0
-        size = st.st_size
-        with open(path, "rb") as f:
-            sample = f.read(SAMPLE_BYTES)
+        lines = path.read_text().splitlines()
     except OSError:
-        return 0
-    lines = sample.count(b"\n") or 1
-    return math.ceil(size / (len(sample) / lines)) if sample else 0
+        return {}
+    out = {}
+    for line in lines:
+        name, _, rest = line.partition(":")
+        parts = rest.split()
+        if parts and parts[0].isdigit():
+            out[name.strip()] = float(parts[0]) * (1024 if parts[1:2] == ["kB"] else 1)
+    return out
 
 
+def _rlimits(proc: Path) -> list[Limit]:
+    """What the soft address-space (``ulimit -v``) and data-segment (``ulimit -d``) limits leave
+    beyond what the process maps already (``VmSize``, ``VmData``; 0 where they cannot be read)
+    and what the program maps later (``LATER_MAPPED``: VmSize grew by 110 MB from the check to
+    the end of a 30-pose run)."""
+    try:
+        import resource
+    except ImportError:  # Windows
+        return []
+    status = _fields(proc / "self" / "status")
+    out = []
+    for name, mapped, flag, what in (("RLIMIT_AS", "VmSize", "-v", "address-space"), ("RLIMIT_DATA", "VmData", "-d", "data-segment")):
+        if not hasattr(resource, name):
+            continue
+        soft = resource.getrlimit(getattr(resource, name))[0]
+        if soft == resource.RLIM_INFINITY or soft < 0:
+            continue
+        used = status.get(mapped, 0.0) + LATER_MAPPED
+        left = max(soft - used, 0.0)
+        out.append(Limit(left, f"the process's {what} limit (ulimit {flag}: {_human(soft)}, {_human(used)} of it mapped by the "
+                               f"program) leaves {_human(left)}", f"or raise ulimit {flag}"))  # fmt: skip
+    return out
+
+
+def _cgroups(proc: Path, root: Path) -> list[Limit]:
+    """What every memory-limited cgroup of this process leaves, from its own up to the root:
+    v2 (``0::PATH``, files under ``root``) and v1 (``N:...memory...:PATH``, under ``root/memory``)."""
+    try:
+        lines = (proc / "self" / "cgroup").read_text().splitlines()
+    except OSError:
+        return []
+    out = []
+    for line in lines:
+        number, controllers, path = (line.split(":", 2) + ["", ""])[:3]
+        if number == "0" and not controllers:
+            base, files = root, ("memory.max", "memory.current", "inactive_file")
+        elif "memory" in controllers.split(","):
+            base, files = root / "memory", ("memory.limit_in_bytes", "memory.usage_in_bytes", "total_inactive_file")
+        else:
+            continue
+        rel = PurePosixPath(path.strip() or "/").relative_to("/")
+        for folder in [base / rel, *(base / p for p in rel.parents)]:
+            limit = _number(folder / files[0])
+            if limit is None or limit >= UNLIMITED:
+                continue
+            in_use = max((_number(folder / files[1]) or 0.0) - _stat(folder / "memory.stat", files[2]), 0.0)
+            left = max(limit - in_use, 0.0)
+            out.append(Limit(left, f"the cgroup's memory limit ({folder / files[0]}: {_human(limit)}, {_human(in_use)} in use) "
+                                   f"leaves {_human(left)}", "or give the container or job more memory"))  # fmt: skip
+    return out
+
+
+def _number(path: Path) -> float | None:
+    """A cgroup file's number; None for ``max``, a missing or unreadable file."""
+    try:
+        text = path.read_text().strip()
+    except OSError:
+        return None
+    return float(text) if text.isdigit() else None
+
+
+def _stat(path: Path, key: str) -> float:
+    try:
+        for line in path.read_text().splitlines():
+            name, _, value = line.partition(" ")
+            if name == key and value.strip().isdigit():
+                return float(value)
+    except OSError:
+        pass
+    return 0.0
+
+
+# --- the check -------------------------------------------------------------------------------------
 def _human(b: float) -> str:
+    if not math.isfinite(b):
+        return "unlimited"
     for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
         if b >= scale:
             return f"{b / scale:.3g} {unit}"
@@ -195,98 +337,26 @@ def _duration(s: float) -> str:
     return f"{s:.0f} s" if s < 120 else f"{s / 60:.0f} min" if s < 7200 else f"{s / 3600:.1f} h"
 
 
-def check(s: Size, lower: dict[str, tuple[str, str]], available: float | None = None) -> None:
-    """Refuse (ValueError, one line) a run whose memory estimate exceeds ``available`` (default:
-    :func:`available_bytes`), naming the estimate, its largest part and the setting to lower
-    (``lower``: part -> (config key, what to do)); log the estimate otherwise, as a warning when
-    the run will take long."""
-    parts = memory_parts(s)
-    need, have = sum(parts.values()), available_bytes() if available is None else available
-    t = seconds(s)
-    if need <= have:
-        memory_said = f"{_human(need)} of memory, {_human(have)} available"
+def check(e: Estimate, available: float | Limit | None = None, what: str = "the run") -> None:
+    """Refuse (ValueError, one line) ``what`` when its memory estimate ``e`` exceeds what this
+    process may use (``available``: bytes or a :class:`Limit`; default :func:`memory_limit`),
+    naming the estimate, its largest part, the limit that binds and the setting to lower; log
+    the estimate otherwise, as a warning when the run will take long."""
+    have = memory_limit() if available is None else available if isinstance(available, Limit) else \
+        Limit(float(available), f"{_human(float(available))} are available")  # fmt: skip
+    need, t = e.bytes, e.seconds
+    notes = "".join(f"; {n}" for n in e.notes)
+    if need <= have.bytes:
+        said = f"{_human(need)} of memory, {have.says}{notes}"
         if t > LONG_S:  # said on the console before the run starts, so that it can be stopped at once
-            log.warning(
-                "this run will take about %s (and %s); to go faster: %s", _duration(t), memory_said, lower[_slowest(s)][1]
-            )
+            slowest = max(e.time, key=lambda k: e.time[k])
+            log.warning("%s will take about %s (and %s); to go faster: %s", what, _duration(t), said, e.lower[slowest][1])
         else:
-            log.debug("size: about %s and %s", _duration(t), memory_said)
+            log.debug("size: about %s and %s", _duration(t), said)
         return
-    top = max(parts, key=parts.get)
-    shares = ", ".join(f"{k} {_human(v)}" for k, v in sorted(parts.items(), key=lambda kv: -kv[1]) if v >= 0.01 * need)
-    key, advice = lower[top]
-    raise ValueError(f"{key}: the run would need about {_human(need)} of memory ({shares}; {_duration(t)}), this machine "
-                     f"has {_human(have)} available: {advice} (or set {ENV} to allow more)")  # fmt: skip
-
-
-# --- from a config -------------------------------------------------------------------------------
-def _get(node: Any, key: str, default: Any = None) -> Any:
-    value = node.get(key, default) if hasattr(node, "get") else getattr(node, key, default)
-    return default if value is None else value
-
-
-def of_config(cfg: Any, n: int) -> tuple[Size, dict[str, str]]:
-    """The :class:`Size` of a composed config (``zrp_ga.config.Config``) for an arm of ``n``
-    joints, and for each part of the estimate the setting that drives it."""
-    from zrp_ga.data import resolve
-
-    p, pop = cfg.problem, cfg.population
-    target = str(_get(cfg.algorithm, "_target_", ""))
-    kind = str(_get(p, "_target_", ""))
-    orientation = bool(_get(p, "use_orientation", False)) if "measured" in kind else not bool(_get(p, "position_only", False))
-    r = 6 if orientation else 3
-    measured = bool(_get(p, "calibration_file"))  # registered to the data: the base point and the hand are genes
-    K = (
-        6 * n
-        + 3 * (measured or bool(_get(p, "identify_base", False)))
-        + 3 * (orientation if measured else bool(_get(p, "identify_hand", False)))
-    )
-    columns = n + 3 + 3 * orientation
-    lower = {"parameters": ("robot", f"an arm of {n} joints has {K} genes: calibrate a shorter chain "
-                                     "(robot.base_link, robot.tip_link of a URDF)"),
-             "population": ("population", "lower population.mu and population.lambda_")}  # fmt: skip
-    cells, M, V = [0, 0], 0, 0
-    files = [("calibration_file", 0), ("validation_file", 1)]
-    if measured:
-        rows = [file_rows(resolve(str(_get(p, f)))) if _get(p, f) else 0 for f, _ in files]
-        cells = [rows[0] * columns, rows[1] * columns]
-        fraction = float(_get(p, "validation_fraction", 0.0))
-        M, V = (rows[0], rows[1]) if rows[1] else (round(rows[0] * (1 - fraction)), round(rows[0] * fraction))
-        lower["poses"] = ("problem.calibration_file", f"calibrate on fewer of its about {rows[0]} rows")
-        lower["validation"] = (
-            ("problem.validation_file", f"validate on fewer of its about {rows[1]} rows") if rows[1] else lower["poses"]
-        )
-    elif "selection" in kind:
-        M, V = int(_get(p, "n_candidates", 0)), int(_get(p, "n_validation", 0))
-        lower["poses"], lower["validation"] = (
-            ("problem.n_candidates", "lower problem.n_candidates"),
-            ("problem.n_validation", "lower problem.n_validation"),
-        )
-    else:
-        M, V = int(_get(p, "n_poses", 1)), int(_get(p, "n_validation", 0))
-        lower["poses"], lower["validation"] = (
-            ("problem.n_poses", "lower problem.n_poses"),
-            ("problem.n_validation", "lower problem.n_validation"),
-        )
-    mu, lam = int(_get(pop, "mu", 1)), int(_get(pop, "lambda_", 1))
-    if target.endswith("cmaes.CMAES"):
-        P = lam
-    elif target.endswith(("lm.LM", "exchange.Exchange")):
-        P = 1
-    elif target.endswith("random_search.RandomSearch"):
-        P = int(_get(cfg.algorithm, "batch", 100))
-        lower["population"] = ("algorithm.batch", "lower algorithm.batch")
-    else:
-        P = mu + lam
-    generations, max_evals = _get(pop, "generations"), _get(pop, "max_evals")
-    evals = [v for v in (max_evals, generations and mu + generations * lam) if v]
-    subset = int(_get(p, "k", 0)) if "selection" in kind else 0
-    cmaes = target.endswith("cmaes.CMAES")
-    return Size(n, K, M, V, r, P, min(evals) if evals else None, (cells[0], cells[1]), subset, cmaes), lower
-
-
-def check_config(cfg: Any, robot: Any, available: float | None = None) -> Size:
-    """:func:`check` the run of ``cfg`` on ``robot`` (a ZRPRobot) before its problem is built."""
-    size, lower = of_config(cfg, int(robot.n))
-    check(size, lower, available)
-    return size
+    top = max(e.memory, key=lambda k: e.memory[k])
+    shares = ", ".join(f"{k} {_human(v)}" for k, v in sorted(e.memory.items(), key=lambda kv: -kv[1]) if v >= 0.01 * need)
+    key, advice = e.lower.get(top, (top, f"make {top} smaller"))
+    hint = f" ({have.hint})" if have.hint else ""
+    raise ValueError(f"{key}: {what} would need about {_human(need)} of memory ({shares}; {_duration(t)}{notes}), "
+                     f"{have.says}: {advice}{hint}")  # fmt: skip

@@ -12,12 +12,15 @@ stays in ``optimiser_cost`` and a warning says so. In simulated studies the opti
 is kept (``returned: "optimiser"``) so that benchmarks see what each optimiser found; the
 warning is the same.
 
-Robot files (:func:`write_robot`): every run writes ``calibrated_robot.urdf`` (with the base
-and the first tool as fixed joints: its forward kinematics from link ``world`` to link ``tool``
-is the calibrated model's, :func:`zrp_ga.model.kinematics.forward`), ``calibrated_robot_dh.yaml``
-and ``calibrated_robot_mdh.yaml`` (standard and modified DH where the calibrated axes allow; the
-remaining mismatch in each header and in ``summary.json``), ``calibrated_robot.yaml`` (ZRP) and ``calibrated_robot_frames.yaml`` (base
-and tool transforms as 4x4 matrices and as xyz + quaternion; every tool under ``tools``).
+Robot files (:func:`write_robot`, :func:`zrp_ga.io.robot_files.write_robot_files`): every run
+writes ``calibrated_robot.urdf`` (the robot alone, from its own base frame: its forward
+kinematics from the root link to the hand is the calibrated model's,
+:func:`zrp_ga.model.kinematics.forward`), ``calibrated_robot_dh.yaml`` and
+``calibrated_robot_mdh.yaml`` (standard and modified DH in the nominal table's conventions, with
+``_dh_corrections.csv`` and ``_mdh_corrections.csv`` beside them; the remaining mismatch in each
+header and in ``summary.json``), ``calibrated_robot.yaml`` (ZRP), ``calibrated_robot_frames.yaml``
+(base and tool transforms as 4x4 matrices and as xyz + quaternion; every tool under ``tools``)
+and, for a Universal Robots arm, ``calibrated_robot_default_kinematics.yaml`` (ur_description's).
 """
 
 from __future__ import annotations

@@ -1,0 +1,248 @@
+"""The arms a compensation uses: the calibrated arm and the nominal one (the controller's), in
+the robot's base frame, with the base transform and the measured tool of the calibration.
+
+:func:`load_arms` reads them from a ``zrp-ga`` run directory, a calibrated robot file, a
+:class:`~zrp_ga.model.robot.ZRPRobot` or what :func:`zrp_ga.calibrate` returns. A nominal arm
+given beside a run (``nominal``, ``--nominal``) that is not the run's own nominal arm is refused
+(:func:`check_nominal`): corrections against another arm's model are metres and tens of degrees,
+not a calibration.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from zrp_ga.compensation import frames
+from zrp_ga.core.files import as_path, regular_file
+from zrp_ga.io.measurements import reach_m
+from zrp_ga.model import kinematics, so3
+from zrp_ga.model.robot import ZRPRobot
+from zrp_ga.run import directory
+
+Array = NDArray[np.float64]
+RUN_MODEL = "calibrated_robot.yaml"
+CALIBRATION_TYPES = ("a zrp-ga run directory or a calibrated robot file (str or pathlib.Path), a ZRPRobot, "
+                     "or what zrp_ga.calibrate returns")  # fmt: skip
+NOMINAL_SAMPLES = 64  # joint samples on which a given nominal arm is compared with the run's
+NOMINAL_SLACK = 5.0  # a given nominal may differ from the run's by this many times what the calibration changed
+NOMINAL_FLOOR_M = 1e-3  # ... plus this much (m), and this much (rad): a controller's model may differ a little
+NOMINAL_FLOOR_RAD = np.radians(0.5)
+FAR_SHARE = 0.05  # without a recorded nominal: a calibrated arm this share of its reach from the nominal is another arm
+
+
+@dataclasses.dataclass(frozen=True)
+class Arms:
+    """The calibrated and the nominal arm (the same joints, the robot's base frame); ``base``
+    (4, 4) the base frame's pose in the instrument's frame (None: the calibration had no
+    instrument frame); where they came from; notes for ``compensation.json``; ``tool`` (4, 4) the
+    calibration's (first) measured tool point in the hand frame (None: the calibration measured
+    the end point itself); whether the calibration measured ``orientations``; ``frames``: how the
+    base and the flange were set up (:mod:`zrp_ga.compensation.setups`) with the sizes of what
+    the data leave open; ``noise_mm``: the calibration's measurement noise per coordinate as its
+    residual shows it (RMS point distance over sqrt 3; None: not known)."""
+
+    calibrated: ZRPRobot
+    nominal: ZRPRobot
+    base: Array | None = None
+    source: str = "calibration"
+    notes: tuple[str, ...] = ()
+    tool: Array | None = None
+    orientations: bool = True
+    measured: bool = False
+    frames: dict = dataclasses.field(default_factory=dict)
+    noise_mm: float | None = None
+
+    def noted(self, *notes: str) -> Arms:
+        return dataclasses.replace(self, notes=(*self.notes, *notes))
+
+
+def load_arms(calibration: Any, nominal: ZRPRobot | str | Path | None = None) -> Arms:
+    """The arms of ``calibration`` (module docstring); ``nominal`` (a robot, a preset name or a
+    robot file) replaces the nominal arm the calibration records, and must be that arm."""
+    given = None if nominal is None else _robot(nominal, "nominal")
+    arms = _arms(calibration)
+    recorded = arms.nominal
+    if given is not None and recorded is not None:
+        check_nominal(given, arms)
+    arms = dataclasses.replace(arms, nominal=given or arms.nominal)
+    if arms.nominal is None:
+        raise ValueError(f"{arms.source}: no nominal robot with it; give the nominal arm (a preset name or a robot file)")
+    cal, nom = arms.calibrated, arms.nominal
+    if (nom.n, nom.joint_types) != (cal.n, cal.joint_types):
+        raise ValueError(f"{arms.source}: the calibrated arm has joints {cal.joint_types}, the nominal {nom.name} "
+                         f"{nom.joint_types}: not the same arm")  # fmt: skip
+    if given is not None and recorded is None:
+        check_far(cal, nom, arms.source)
+    return arms
+
+
+def _arms(calibration: Any) -> Arms:
+    """The arms of a calibrated robot, a calibration, a run directory or a robot file (the
+    nominal arm None where none is recorded)."""
+    if isinstance(calibration, ZRPRobot):
+        return Arms(calibration, None, source="the calibrated robot")
+    if hasattr(calibration, "task") and hasattr(calibration, "summary"):  # zrp_ga.api.Calibration
+        return _from_calibration(calibration)
+    if isinstance(calibration, (str, os.PathLike)):
+        return _from_path(as_path(calibration, "calibration"))
+    raise TypeError(f"calibration: expected {CALIBRATION_TYPES}; got {_kind(calibration)}")
+
+
+def _kind(value: Any) -> str:
+    return "None" if value is None else f"a {type(value).__module__}.{type(value).__qualname__}".replace("builtins.", "")
+
+
+def _from_calibration(calibration: Any) -> Arms:
+    """The arms of what :func:`zrp_ga.calibrate` returns."""
+    task = calibration.task
+    x = np.array([calibration.summary["best_genome"][k] for k in task.problem.names])
+    cal, base, tools = task.export(x)
+    measured = base is not None
+    orient = bool(getattr(task.problem.data, "R", None) is not None) if measured else True
+    return Arms(cal, task.robot, base, "the calibration", tool=next(iter(tools.values()), None), orientations=orient,
+                measured=measured, noise_mm=_noise(calibration.summary))  # fmt: skip
+
+
+def _noise(summary: dict) -> float | None:
+    """The measurement noise per coordinate (mm) a measured calibration's residual shows."""
+    try:
+        return float(summary["position_error_mm"]["calibration"]["calibrated"]["rms"]) / np.sqrt(3.0)
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def _from_path(path: Path) -> Arms:
+    """The arms of a run directory, or of a calibrated robot file (with its run's summary.json
+    when it lies in a run directory)."""
+    from zrp_ga.io.robot_files import read_robot
+
+    if path.is_dir():
+        _check_run_dir(path)
+        run, path = path, path / RUN_MODEL
+    else:
+        regular_file(path, "a calibrated robot file or a zrp-ga run directory")
+        run = path.parent if (path.parent / directory.SUMMARY).is_file() else None  # a run's URDF: its arm in the base frame too
+    cal = read_robot(path)
+    if run is None:
+        return Arms(cal, None, source=str(path))
+    return _run_info(run, Arms(cal, None, source=str(path)))
+
+
+def _check_run_dir(path: Path) -> None:
+    if (path / RUN_MODEL).is_file():
+        return
+    jobs = sorted(p.parent.name for p in path.glob(f"*/{RUN_MODEL}"))
+    hint = f"; a sweep directory? give one of its jobs ({path / jobs[0]}, ...)" if jobs else ""
+    raise ValueError(f"{path}: not a calibration run directory (no {RUN_MODEL}){hint}")
+
+
+def _run_info(run: Path, arms: Arms) -> Arms:
+    """``arms`` with the nominal arm, the base transform, the first tool and notes of a run's
+    ``summary.json``."""
+    path = run / directory.SUMMARY
+    text = regular_file(path, "a run's summary.json").read_text()
+    try:
+        s = json.loads(text)
+    except ValueError as exc:
+        raise ValueError(f"{path}: not JSON ({exc})") from None
+    nominal = ZRPRobot.from_dict(s["robot_model"], source=f"{path}: robot_model") if "robot_model" in s else None
+    files = s.get("calibrated_robot") or {}
+    base = files.get("base")
+    tool = next(iter((files.get("tools") or {}).values()), None)
+    base = None if base is None else frames.check_transform(base, f"{path}: calibrated_robot.base")
+    tool = None if tool is None else frames.check_transform(tool, f"{path}: calibrated_robot.tools")
+    notes = []
+    if s.get("returned") == "nominal":
+        notes.append(f"{path}: the run returned the nominal arm (it fitted no better): nothing to correct")
+    problem = (s.get("config") or {}).get("problem") or {}
+    orientations = not (problem.get("position_only") or problem.get("use_orientation") is False)
+    return dataclasses.replace(arms, nominal=nominal, base=base, tool=tool, notes=tuple(notes), orientations=orientations,
+                               measured=base is not None, noise_mm=_noise(s))  # fmt: skip
+
+
+def _robot(robot: Any, what: str) -> ZRPRobot:
+    """A robot, a preset name or a robot file; TypeError naming ``what`` for anything else."""
+    from zrp_ga.io import presets
+    from zrp_ga.io.robot_files import read_robot
+
+    if isinstance(robot, ZRPRobot):
+        return robot
+    if not isinstance(robot, (str, os.PathLike)):
+        raise TypeError(f"{what}: expected a ZRPRobot, a preset name or a robot file path; got {_kind(robot)}")
+    return presets.get(str(robot)) if str(robot) in presets.names() else read_robot(robot)
+
+
+# --- is the nominal arm the calibrated arm's? ---------------------------------------------------
+def difference(a: ZRPRobot, b: ZRPRobot) -> tuple[float, float]:
+    """The largest hand position (m) and orientation (rad) difference of two arms of the same
+    joints over :data:`NOMINAL_SAMPLES` joint values within ``a``'s limits (q = 0 first; the
+    samples drawn from ``numpy.random.default_rng(0)``, the same every time)."""
+    lim = a.joint_limits
+    q = np.vstack([np.clip(0.0, lim[:, 0], lim[:, 1]), np.random.default_rng(0).uniform(lim[:, 0], lim[:, 1], (NOMINAL_SAMPLES - 1, a.n))])
+    (Ra, pa), (Rb, pb) = kinematics.forward(a, q), kinematics.forward(b, q)
+    angles = np.linalg.norm(so3.log(np.swapaxes(Ra, 1, 2) @ Rb), axis=-1)
+    return float(np.linalg.norm(pa - pb, axis=1).max()), float(angles.max())
+
+
+def check_nominal(given: ZRPRobot, arms: Arms) -> None:
+    """Refuse a given nominal arm that differs from the nominal arm the calibration records by
+    more than :data:`NOMINAL_SLACK` times what the calibration changed (plus a millimetre and
+    half a degree): the corrections would be those between two different arms."""
+    recorded, cal = arms.nominal, arms.calibrated
+    if (given.n, given.joint_types) != (recorded.n, recorded.joint_types):
+        raise ValueError(f"nominal (--nominal): {given.name} has joints {given.joint_types}, but {arms.source} was "
+                         f"calibrated from {recorded.name} ({recorded.joint_types}): not the same arm")  # fmt: skip
+    dp, da = difference(given, recorded)
+    cp, ca = difference(cal, recorded)
+    if dp > NOMINAL_SLACK * cp + NOMINAL_FLOOR_M or da > NOMINAL_SLACK * ca + NOMINAL_FLOOR_RAD:
+        raise ValueError(f"nominal (--nominal): {given.name} is not the nominal arm of {arms.source} ({recorded.name}, "
+                         f"recorded in its {directory.SUMMARY}): their hands differ by up to {dp * 1e3:.4g} mm and "
+                         f"{np.degrees(da):.3g} deg over the joint range, the calibration changed it by {cp * 1e3:.3g} mm "
+                         f"and {np.degrees(ca):.3g} deg; leave --nominal out to use the recorded arm")  # fmt: skip
+
+
+def check_far(cal: ZRPRobot, nominal: ZRPRobot, source: str) -> None:
+    """Refuse a nominal arm whose hand lies farther from the calibrated arm's than
+    :data:`FAR_SHARE` of its reach somewhere in the joint range (a calibration corrects
+    millimetres): another arm's model, or the calibrated arm in another frame."""
+    dp, da = difference(cal, nominal)
+    if dp > FAR_SHARE * reach_m(nominal):
+        raise ValueError(f"nominal (--nominal): {nominal.name} is not the nominal arm of {source}: their hands differ by up "
+                         f"to {dp * 1e3:.4g} mm and {np.degrees(da):.3g} deg over the joint range ({nominal.name} "
+                         f"reaches {reach_m(nominal) * 1e3:.4g} mm); a calibration corrects millimetres")  # fmt: skip
+
+
+# --- tools -----------------------------------------------------------------------------------------
+def tool_transform(tool: Any, what: str = "tool") -> Array | None:
+    """``tool`` as a transform (4, 4) in the hand frame: an offset (3,) m or a transform (4, 4)
+    (checked: :func:`zrp_ga.compensation.frames.check_transform`); None stays None."""
+    if tool is None:
+        return None
+    if isinstance(tool, (dict, str, set)):
+        raise TypeError(f"{what}: expected an offset (3,) m or a 4x4 transform in the hand frame; got {_kind(tool)}")
+    try:
+        T = np.asarray(tool, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what}: expected an offset (3,) m or a 4x4 transform, got {tool!r}") from None
+    if T.shape == (3,):
+        if not np.all(np.isfinite(T)):
+            raise ValueError(f"{what}: NaN or inf in the offset")
+        return frames.transform(np.eye(3), T)
+    if T.shape != (4, 4):
+        raise ValueError(f"{what}: expected an offset (3,) or a 4x4 transform, got shape {T.shape}")
+    return frames.check_transform(T, what)
+
+
+def with_tool(robot: ZRPRobot, tool: ArrayLike | None) -> ZRPRobot:
+    """``robot`` ending at a tool: ``tool`` an offset (3,) m or a transform (4, 4) in the hand frame."""
+    T = tool_transform(tool)
+    if T is None:
+        return robot
+    return robot.with_tool(T[:3, 3]).replace(R_h0=robot.R_h0 @ T[:3, :3])

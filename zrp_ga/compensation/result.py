@@ -1,0 +1,100 @@
+"""A compensated program (:class:`Compensation`): per target, the corrected joint values and
+Cartesian targets, the predicted residuals, the error of the program as written and the size of
+the correction. Its tables and ``compensation.json`` are written by
+:mod:`zrp_ga.compensation.writing`."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zrp_ga.compensation import writing
+from zrp_ga.compensation.arms import Arms
+from zrp_ga.compensation.program import Program
+from zrp_ga.model import kinematics, so3
+
+Array = NDArray[np.float64]
+
+
+@dataclasses.dataclass(frozen=True)
+class Compensation:
+    """The compensated program (:func:`zrp_ga.compensation.compensate.compensate`), per target
+    (M rows): the corrected joint values ``q`` (M, n) (rad, m; NaN where not reached), the
+    nominal solution ``q_nominal``, the targets ``p`` (M, 3) m and ``R`` (M, 3, 3) (None for
+    positions) in the robot's base frame, the corrected Cartesian targets ``p_corrected``,
+    ``R_corrected`` in the base frame (what a controller using the nominal model is sent), the
+    predicted residuals and uncompensated errors (mm, deg), ``reasons`` (empty where reached),
+    and ``to_base`` (4, 4): the program's frame in the base frame (``frame`` names it)."""
+
+    program: Program
+    arms: Arms
+    q: Array
+    q_nominal: Array
+    p: Array
+    R: Array | None
+    p_corrected: Array
+    R_corrected: Array
+    residual_mm: Array
+    residual_deg: Array
+    uncompensated_mm: Array
+    uncompensated_deg: Array
+    reached: NDArray[np.bool_]
+    reasons: tuple[str, ...]
+    frame: str = "base"
+    to_base: Array = dataclasses.field(default_factory=lambda: np.eye(4))
+    frame_source: str = ""
+
+    @property
+    def unreachable(self) -> list[str]:
+        """``"line 7: why"`` for every target not reached."""
+        return [f"{w}: {r}" for w, r, ok in zip(self.program.where, self.reasons, self.reached) if not ok]
+
+    def correction(self) -> dict[str, Array]:
+        """Size of the correction per target: the largest revolute joint change ``dq_deg`` and
+        prismatic ``dq_mm`` (absent without prismatic joints), the Cartesian ``dx_mm`` and
+        ``dr_deg`` (NaN where not reached)."""
+        dq = np.abs(self.q - self.q_nominal)
+        pri = self.arms.calibrated.prismatic
+        out = {"dq_deg": np.degrees(dq[:, ~pri].max(axis=1, initial=0.0))}
+        if pri.any():
+            out["dq_mm"] = dq[:, pri].max(axis=1) * 1e3
+        out["dx_mm"] = np.linalg.norm(self.p_corrected - self.p, axis=1) * 1e3
+        R_ref, _ = kinematics.forward(self.arms.nominal, self.q_nominal)
+        out["dr_deg"] = np.degrees(np.linalg.norm(so3.log(self.R_corrected @ np.swapaxes(R_ref, 1, 2)), axis=-1))
+        return {k: np.where(self.reached, v, np.nan) for k, v in out.items()}
+
+    def tables(self):
+        """``joints.csv`` and ``targets.csv`` as pandas DataFrames (:func:`zrp_ga.compensation.writing.tables`)."""
+        return writing.tables(self)
+
+    def summary(self) -> dict[str, Any]:
+        """What ``compensation.json`` holds (:func:`zrp_ga.compensation.writing.summary`)."""
+        return writing.summary(self)
+
+    def write(self, out: str | Path) -> dict[str, Path]:
+        """``joints.csv``, ``targets.csv`` and ``compensation.json`` in ``out``
+        (:func:`zrp_ga.compensation.writing.write`)."""
+        return writing.write(self, out)
+
+
+def evaluated(pr: Program, arms: Arms, q_cal: Array, q_nom: Array, p: Array, R: Array | None, reached, reasons,
+              **where: Any) -> Compensation:  # fmt: skip
+    """The :class:`Compensation` of solutions ``q_cal`` (calibrated) and ``q_nom`` (nominal)
+    (M, n) of targets ``p`` (M, 3), ``R`` (M, 3, 3) or None: residuals ``FK_cal(q*) - T*``,
+    errors as written ``FK_cal(q_nom) - T*``, corrected Cartesian targets ``FK_nom(q*)``."""
+    cal, nom = arms.calibrated, arms.nominal
+    R_after, p_after = kinematics.forward(cal, q_cal)
+    R_before, p_before = kinematics.forward(cal, q_nom)
+    R_corr, p_corr = kinematics.forward(nom, q_cal)
+    angle = lambda A: np.degrees(np.linalg.norm(so3.log(A @ np.swapaxes(R, 1, 2)), axis=-1)) if R is not None else np.zeros(pr.M)
+    q = np.where(reached[:, None], q_cal, np.nan)
+    return Compensation(
+        pr, arms, q, q_nom, p, R, p_corr, R_corr,
+        residual_mm=np.linalg.norm(p_after - p, axis=1) * 1e3, residual_deg=angle(R_after),
+        uncompensated_mm=np.linalg.norm(p_before - p, axis=1) * 1e3, uncompensated_deg=angle(R_before),
+        reached=reached, reasons=tuple(reasons), **where,
+    )  # fmt: skip
