@@ -165,22 +165,21 @@ def _relative(words: list[str], cwd: str) -> list[str]:
 
 @functools.lru_cache(maxsize=1)
 def code_version() -> str:
-    """zrp_ga's version, with its commit (and "modified" when the tree differs from it) when the
-    code runs from a git clone (an editable install, or the source tree), e.g. ``0.1.0 (commit
+    """zrp_ga's version, with its commit (and "modified" when its code or configs differ from
+    it) when the code runs from a git clone (an editable install, or the source tree), e.g. ``0.1.0 (commit
     f139c89)``."""
-    import zrp_ga
-
     try:
         version = metadata.version("zrp_ga")
     except metadata.PackageNotFoundError:
         version = "?"
-    root = Path(zrp_ga.__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]  # the folder holding zrp_ga/
     if not ((root / ".git").exists() and (root / "pyproject.toml").exists()):
         return version
     try:
         git = ["git", "-C", str(root)]
         commit = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True, timeout=10, check=True)
-        dirty = subprocess.run([*git, "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True, timeout=10)
+        dirty = subprocess.run([*git, "status", "--porcelain", "--untracked-files=no", "--", "zrp_ga", "conf"], capture_output=True,
+                               text=True, timeout=10)  # the code's own folders: a study's results beside it do not count
     except (OSError, subprocess.SubprocessError):
         return version
     return f"{version} (commit {commit.stdout.strip()}{', modified' if dirty.stdout.strip() else ''})"
