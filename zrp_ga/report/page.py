@@ -163,10 +163,12 @@ _PAIR_COLS = ["test", "a", "b", "p", "p_holm", "p_equivalence_holm", "effect", "
 def _summary_table(t: dict) -> str:
     rule, s = t["rule"], t["summary"]
     cols = ["configuration", "runs", "instances", "final_over_ref_median", "final_cost_median", "final_cost_q1", "final_cost_q3",
-            "val_rms_mm_median", "nevals_median", *[f"success_{n}" for n in rule.names()], *[f"ert_{n}" for n in rule.names()]]  # fmt: skip
+            "val_rms_mm_median", "nevals_median", "wall_s_median", *[f"success_{n}" for n in rule.names()],
+            *[f"ert_{n}" for n in rule.names()]]  # fmt: skip
     cols = [c for c in cols if c in s and not (c.startswith("val_") and s[c].isna().all())]
     names = {"final_over_ref_median": "final / f_ref, median", "final_cost_median": "final cost, median", "final_cost_q1": "Q1",
              "final_cost_q3": "Q3", "val_rms_mm_median": "validation RMS mm, median", "nevals_median": "evaluations, median",
+             "wall_s_median": "wall s, median",
              **{f"success_{n}": f"hit {n}" for n in rule.names()}, **{f"ert_{n}": f"ERT {n}" for n in rule.names()}}  # fmt: skip
     ref = t["reference"]
     parts = ["<h3>Per configuration</h3>",
