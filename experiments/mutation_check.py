@@ -176,8 +176,8 @@ PLANTS: list[dict] = [
          old='return str(row["a"]), FLIP.get(v, v), 1 - e, 1 - hi, 1 - lo', new='return str(row["a"]), FLIP.get(v, v), e, lo, hi',
          tests=REPORT_SENTENCES, what="report: the effect P(best ends lower) given from the other side of the pair"),
     dict(name="report-fifo-read", file="zrp_ga/report/runs.py",
-         old='        regular_file(path, f"a run\'s {name}")\n', new="",
-         tests=["tests/test_report_runs.py"], what="report: a run's file read without checking it is a regular file (a FIFO hangs it)"),
+         old='        regular_file(path, f"a run\'s {name}")', new='        path.exists() or regular_file(path, f"a run\'s {name}")',
+         tests=["tests/test_report_runs.py"], what="report: a run's file that exists read without checking it is a regular file (a FIFO hangs it)"),
     # --- compensation (zrp_ga.compensation): frames, sizes, units, setups ---------------------------
     dict(name="comp-orientation-frame", file="zrp_ga/compensation/frames.py",
          old="return p @ T[:3, :3].T + T[:3, 3], None if R is None else T[:3, :3] @ R",
