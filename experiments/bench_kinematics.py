@@ -43,6 +43,7 @@ from zrp_ga.model.layout import Layout
 from zrp_ga.model.poses import Measurements
 
 OUT = Path(__file__).resolve().parent / "results" / "bench_kinematics.md"
+os.environ["ZRP_GA_KERNELS"] = "compiled"  # the compiled kernels even for small calls (not their numpy twins)
 CHAINS = 10  # independent accumulators in the peak benchmark
 
 

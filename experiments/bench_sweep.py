@@ -189,11 +189,13 @@ def kernel_rates(problem, batches: list[int], seconds: float = 0.5) -> dict[str,
     kernel's one thread), per batch size (genomes per call): random genomes within the gene
     ranges, the median of 5 timings of about ``seconds`` each; by wall time (key ``B``) and by
     the process's CPU time (key ``B cpu``), which a loaded machine slows less."""
+    from unittest import mock
+
     from threadpoolctl import threadpool_limits
 
     rng = np.random.default_rng(0)
     rates = {}
-    with threadpool_limits(limits=1):
+    with threadpool_limits(limits=1), mock.patch.dict(os.environ, ZRP_GA_KERNELS="compiled"):  # not the numpy twins
         for b in batches:
             X = rng.uniform(problem.lower, problem.upper, (b, problem.lower.size))
             problem.costs(X)  # compiled and cached outside the timing

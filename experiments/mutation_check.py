@@ -38,6 +38,9 @@ MODEL = ["tests/test_so3.py", "tests/test_kinematics.py"]
 UNITS = ["tests/test_measurement_files.py", "tests/test_measurement_units.py"]
 REPORT_STATS = ["tests/test_report_stats.py", "tests/test_report.py"]
 REPORT_SENTENCES = ["tests/test_report_sentences.py"]
+SHAPES = "tests/test_operators_shapes.py"
+KERNELS = "tests/test_kernels.py"
+SURVIVAL = "tests/test_survival.py"
 COMP_FRAMES = "tests/test_compensation_frames.py"
 COMP_TABLES = "tests/test_compensation_tables.py"
 COMP_INPUTS = "tests/test_compensation_inputs.py"
@@ -84,6 +87,42 @@ PLANTS: list[dict] = [
          old='pick = np.searchsorted(np.cumsum(sizes), rng.random(N) * sizes.sum(), side="right")',
          new="pick = rng.integers(0, len(sizes), N)", tests=[OPS],
          what="block moves: blocks chosen alike instead of by size"),
+    # --- operators and kernels: every genome size from one gene (issue 27) ---------------------
+    dict(name="segments-one-gene-pair", file="zrp_ga/operators/base.py",
+         old="    pair = span >= 2\n", new="    pair = span >= 1\n", tests=[SHAPES],
+         what="segments: a pair of loci drawn in a span of one gene (a one-gene genome or block inverted or rotated past its end)"),
+    dict(name="one-point-one-gene", file="zrp_ga/operators/crossover.py",
+         old="    if K < 2:\n        return ind1, ind2\n", new="", tests=[SHAPES],
+         what="one-point crossover of one-gene genomes draws a cut point from an empty range"),
+    dict(name="two-point-two-genes", file="zrp_ga/operators/crossover.py",
+         old="    if K == 2:\n        lo, hi = np.ones(N, dtype=np.intp), np.full(N, 2)\n", new="", tests=[SHAPES],
+         what="two-point crossover of two-gene genomes exchanges nothing"),
+    dict(name="block-none-usable", file="zrp_ga/operators/base.py",
+         old="    if not len(usable):\n        return np.zeros(N, dtype=np.intp), np.zeros(N, dtype=np.intp)\n", new="",
+         tests=[SHAPES], what="block moves when no block has two genes (a genome of one-gene blocks)"),
+    dict(name="reverse-mirror-off-by-one", file="zrp_ga/operators/base.py",
+         old="np.asarray(i)[:, None] + np.asarray(j)[:, None] - k, k)", new="np.asarray(i)[:, None] + np.asarray(j)[:, None] + 1 - k, k)",
+         tests=[SHAPES], what="inversion: each locus takes the gene one past its mirror (reads past the segment)"),
+    dict(name="rotate-shift-sign", file="zrp_ga/operators/base.py",
+         old="i + (k - i - np.asarray(shift)[:, None]) % length, k)", new="i + (k - i - np.asarray(shift)[:, None] - 1) % length, k)",
+         tests=[SHAPES], what="rotation: shifted one place more than drawn (a length-two segment never moves)"),
+    dict(name="kernel-layout-no-joint", file="zrp_ga/model/kinematics.py",
+         old="    if U.ndim != 3 or n < 1:\n", new="    if U.ndim != 3:\n", tests=[KERNELS],
+         what="cost kernels: an arm of no joint passed to the kernels (the matrix kernel reads joint 1)"),
+    dict(name="jacobian-axes-unchecked", file="zrp_ga/model/error_model.py",
+         old="    if n < 1 or u0.shape != (n, 3) or b0.shape != (n + 1, 3) or prism.shape != (n,):\n",
+         new="    if n < 1 or b0.shape != (n + 1, 3) or prism.shape != (n,):\n", tests=[KERNELS],
+         what="Jacobian kernel: axes of another arm passed unchecked (reads past u0)"),
+    dict(name="numpy-twin-transposed", file="zrp_ga/model/_numpy_kernels.py",
+         old="X = np.stack([ci * x + si * (uy * z - uz * y) + d * ux,", new="X = np.stack([ci * x - si * (uy * z - uz * y) + d * ux,",
+         tests=[KERNELS], what="the numpy twin of the kernels: one component of each rotation with -sin q"),
+    # --- survival (issue 27) ----------------------------------------------------------------------
+    dict(name="elite-ranked-by-offspring", file="zrp_ga/algorithms/ga.py",
+         old="rank(Pc)[:, :elite]", new="rank(Qc)[:, :elite]", tests=[SURVIVAL],
+         what="generational survival: the elite parents picked by the offspring's ranking"),
+    dict(name="short-generation-keeps-strategy", file="zrp_ga/algorithms/ga.py",
+         old="strategy = ga.strategy if lam >= mu else Strategy.mu_plus_lambda", new="strategy = ga.strategy",
+         tests=[SURVIVAL], what="a generation cut short by max_evals (fewer children than mu) survives by its strategy: the population shrinks"),
     # --- registration ---------------------------------------------------------------------------
     dict(name="registration-rms-is-mean", file="zrp_ga/model/registration.py",
          old="return float(np.sqrt(np.mean(self.errors**2)))", new="return float(np.mean(self.errors))", tests=[REG],
@@ -114,7 +153,7 @@ PLANTS: list[dict] = [
     dict(name="reference-chain-transposed", file="zrp_ga/model/kinematics.py",
          old="R = R @ so3.rodrigues(q[i], robot.u0[i])", new="R = R @ so3.rodrigues(q[i], robot.u0[i]).T",
          tests=MODEL, what="forward_reference: each joint's rotation transposed"),
-    dict(name="forward-kernel-transposed", file="zrp_ga/model/kinematics.py",
+    dict(name="forward-kernel-transposed", file="zrp_ga/model/_kernels.py",
          old="ci, si = c[i], s[i]", new="ci, si = c[i], -s[i]",
          tests=MODEL, what="the compiled forward kinematics: each joint's rotation transposed (R(-q))"),
     dict(name="rodrigues-kernel-transposed", file="zrp_ga/model/_kernels.py",

@@ -6,6 +6,13 @@ from zrp_ga.model import error_model, kinematics, so3
 from zrp_ga.model.robot import ZRPRobot
 
 
+@pytest.fixture(params=["numpy", "compiled"])
+def path(request, monkeypatch):
+    """Each kernel through its numpy twin and compiled (zrp_ga.core.compiled.call's two paths)."""
+    monkeypatch.setenv("ZRP_GA_KERNELS", request.param)
+    return request.param
+
+
 def _random_arm(rng, types):
     n = len(types)
     u0 = rng.normal(size=(n, 3))
@@ -40,7 +47,7 @@ def _fd_pose_jacobian(robot, q, base, hand, h=1e-6):
 
 @pytest.mark.parametrize("types", ["RRRRRR", "RRPRRR", "PRRPR"])
 @pytest.mark.parametrize("extra", [(False, False), (True, True)])
-def test_analytic_jacobian_matches_finite_differences(rng, types, extra):
+def test_analytic_jacobian_matches_finite_differences(rng, types, extra, path):
     robot = _random_arm(rng, types)
     q = rng.uniform(-np.pi, np.pi, size=(8, robot.n))
     J = error_model.pose_jacobians(robot, q, *extra)
@@ -104,7 +111,7 @@ def test_slide_direction_really_leaves_poses_unchanged(rng):
 
 
 @pytest.mark.parametrize("name", ["puma560", "ur10", "stanford"])
-def test_compiled_jacobian_equals_the_numpy_reference(name, rng):
+def test_compiled_jacobian_equals_the_numpy_reference(name, rng, path):
     """Also for axes that are not unit vectors (a genome's axes before normalisation)."""
     robot = robots.get(name)
     u0 = robot.u0 + rng.normal(scale=0.02, size=robot.u0.shape)

@@ -6,11 +6,18 @@ from dh_reference import dh_fk
 
 from zrp_ga import robots
 from zrp_ga.io.robot_files import read_dh
-from zrp_ga.model import kinematics, so3
+from zrp_ga.model import _kernels, kinematics, so3
 from zrp_ga.model.cost import CalibrationProblem
 from zrp_ga.model.layout import Layout
 from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.model.simulation import simulate
+
+
+@pytest.fixture(params=["numpy", "compiled"])
+def path(request, monkeypatch):
+    """Each kernel through its numpy twin and compiled (zrp_ga.core.compiled.call's two paths)."""
+    monkeypatch.setenv("ZRP_GA_KERNELS", request.param)
+    return request.param
 
 
 def _table(name):
@@ -20,7 +27,7 @@ def _table(name):
 
 
 @pytest.mark.parametrize("name", robots.names())
-def test_forward_matches_independent_dh_chain(name, rng):
+def test_forward_matches_independent_dh_chain(name, rng, path):
     robot, table = robots.get(name), _table(name)
     Q = rng.uniform(-np.pi, np.pi, size=(25, robot.n))
     Q[:, robot.prismatic] = rng.uniform(0.3, 1.2, size=(25, robot.prismatic.sum()))
@@ -31,7 +38,7 @@ def test_forward_matches_independent_dh_chain(name, rng):
         np.testing.assert_allclose(p[m], T[:3, 3], atol=1e-12)
 
 
-def test_modified_dh_matches_independent_chain(rng):
+def test_modified_dh_matches_independent_chain(rng, path):
     table = dict(
         d=[0.3, 0.1, -0.2, 0.4, 0.0], a=[0.0, 0.05, 0.35, 0.0, 0.1],
         alpha=[0.0, np.pi / 2, 0.1, -np.pi / 2, np.pi / 2], offset=[0.1, 0.0, 0.2, 0.0, -0.3], joint_types="RRPRR",
@@ -50,7 +57,7 @@ def test_puma_wrist_centre_at_zero():
     np.testing.assert_allclose(R, np.eye(3), atol=1e-12)
 
 
-def test_batch_over_population_equals_each_robot(rng):
+def test_batch_over_population_equals_each_robot(rng, path):
     base = robots.get("stanford")
     P, M = 7, 11
     u0 = base.u0 + rng.normal(scale=0.01, size=(P, 6, 3))
@@ -66,7 +73,7 @@ def test_batch_over_population_equals_each_robot(rng):
         np.testing.assert_allclose(p[k], pk, atol=1e-14)
 
 
-def test_residual_sums_by_hand(rng):
+def test_residual_sums_by_hand(rng, path):
     robot = robots.get("ur10")
     P, M = 4, 9
     u0 = robot.u0 + rng.normal(scale=0.02, size=(P, 6, 3))
@@ -138,7 +145,7 @@ def _reference_norms(robot, u0, b0, q, p_meas, R_meas, weights):
     return np.array(out)
 
 
-LANES = kinematics._kernels.LANES  # parameter sets per chunk of the kernels
+LANES = _kernels.LANES  # parameter sets per chunk of the kernels
 # float32: the chain's rounding is a few float32 units (6e-8) of the arm's reach (about 1 m) per
 # pose and joint; 1e-6 m (or rad) per pose, 16 units, bounds what was seen (2e-7) with room.
 TOLERANCE = {"rodrigues": 1e-12, "matrix": 1e-12, "float32": 1e-6}
@@ -149,7 +156,7 @@ TOLERANCE = {"rodrigues": 1e-12, "matrix": 1e-12, "float32": 1e-6}
     "name, P, M",
     [("puma560", 1, 1), ("puma560", 31, 3), ("stanford", LANES + 1, 5), ("ur10", 67, 2)],
 )
-def test_every_kernel_matches_the_reference(kernel, name, P, M, rng):
+def test_every_kernel_matches_the_reference(kernel, name, P, M, rng, path):
     """Residual norms of every kernel against forward_reference, for P = 1, odd P across chunk
     boundaries, M = 1 and a prismatic arm (stanford); weights on the positions, full and
     position-only data."""
@@ -166,7 +173,7 @@ def test_every_kernel_matches_the_reference(kernel, name, P, M, rng):
 
 
 @pytest.mark.parametrize("kernel", kinematics.KERNELS)
-def test_kernels_take_non_contiguous_input_and_threads(kernel, rng):
+def test_kernels_take_non_contiguous_input_and_threads(kernel, rng, path):
     robot, u0, b0, q, p_meas, R_meas = _case(rng, P=70, M=3)
     U, B, H = kinematics._population(u0, b0, robot.R_h0)
     terms = kinematics.joint_terms(q, robot.prismatic)
@@ -181,7 +188,7 @@ def test_kernels_take_non_contiguous_input_and_threads(kernel, rng):
         np.testing.assert_array_equal(got, expected)
 
 
-def test_rodrigues_kernel_is_bit_identical_to_forward_batch(rng):
+def test_rodrigues_kernel_is_bit_identical_to_forward_batch(rng, path):
     """The default kernel does zrp_ga 0.1's operations in 0.1's order: its sums equal, bit for bit,
     the same formula evaluated in numpy on forward_batch's poses (whose kernel is 0.1's)."""
     robot, u0, b0, q, p_meas, R_meas = _case(rng, "stanford", P=45, M=6)

@@ -1,3 +1,4 @@
+import os
 import tomllib
 from pathlib import Path
 
@@ -12,17 +13,22 @@ def test_every_code_package_is_listed_in_pyproject_and_the_configs_ship_whole():
     assert setup["package-data"]["zrp_ga.conf"] == ["**/*.yaml"]
 
 
-def test_compiled_code_is_never_cached_inside_the_package():
+def test_compiled_code_is_never_cached_inside_the_package(monkeypatch):
     import numpy as np
 
     from zrp_ga import robots
+    from zrp_ga.core import compiled
     from zrp_ga.model import kinematics
-    from zrp_ga.operators import reverse_segments
 
+    monkeypatch.setenv("ZRP_GA_KERNELS", "compiled")
     kinematics.forward(robots.get("puma560"), np.zeros((2, 6)))
-    reverse_segments(np.zeros((1, 4)), np.array([0]), np.array([3]))
+    from zrp_ga.model import _kernels
+
+    assert _kernels.forward_kernel.signatures  # the compiled kernel ran (loaded from the cache, or compiled now)
     package = ROOT / "zrp_ga"
     assert not [p for p in package.rglob("*") if p.suffix in (".nbi", ".nbc")]
+    if not os.environ.get("NUMBA_CACHE_DIR"):
+        assert list(compiled.cache_dir().rglob("_kernels.forward_kernel-*.nbi"))  # cached where the module says
 
 
 def test_hydra_only_through_its_public_interfaces():

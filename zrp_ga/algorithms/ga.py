@@ -389,16 +389,18 @@ def _survive(runs: Sequence[GA], off: Array, off_costs: Array, spans: list[slice
         genes, pool, keep = SURVIVE_TOGETHER[strategy](P, Pc, Q, Qc, mu, elite)
         pop = np.take_along_axis(genes, keep[:, :, None], axis=1)
         costs = np.take_along_axis(pool, keep, axis=1)
-        finite = np.where(np.isfinite(costs), costs, np.inf)
-        best = np.argmin(finite, axis=1)  # the first best: the current genome, and the one offered
-        bests = finite[np.arange(len(group)), best].tolist()
+        best = np.argmin(np.where(np.isfinite(costs), costs, np.inf), axis=1)  # the first best: the current genome
+        # the first best of all this generation saw, kept or not (an elite of mu keeps no child): the one offered
+        seen = np.where(np.isfinite(pool), pool, np.inf)
+        top = np.argmin(seen, axis=1)
+        tops = seen[np.arange(len(group)), top].tolist()
         for g, i in enumerate(group):
             ga = runs[i]
             ga.nevals += int(evaluated[i])
             ga.n_nonfinite = int(nonfinite[i])
             ga.pop, ga.costs, ga.gen, ga._best = pop[g], costs[g], ga.gen + 1, int(best[g])
-            if bests[g] < ga.best_cost:
-                ga.best_x, ga.best_cost = np.array(pop[g, best[g]], dtype=float), bests[g]
+            if tops[g] < ga.best_cost:
+                ga.best_x, ga.best_cost = np.array(genes[g, top[g]], dtype=float), tops[g]
             ga._update_stagnation()
             ga.stop_reason = ga._stop_reason()
 

@@ -1,5 +1,12 @@
-"""Compiled pose-cost kernels behind :mod:`zrp_ga.model.kinematics` (its hand poses come from
-:func:`kinematics._chain`): the squared pose errors of a population summed over the poses.
+"""The compiled kernels behind :mod:`zrp_ga.model.kinematics` and :mod:`zrp_ga.model.error_model`:
+the squared pose errors of a population summed over the poses (:func:`residual_rodrigues`,
+:func:`residual_matrix`), the hand poses of a population (:func:`forward_kernel`) and the pose
+Jacobians (:func:`jacobian_kernel`). This module imports numba and is imported only when a
+compiled kernel is called (:func:`zrp_ga.core.compiled.call`); :mod:`zrp_ga.model._numpy_kernels`
+computes the same numbers without compiling (all but :func:`residual_matrix`).
+
+Every kernel indexes only within the shapes stated in its docstring; the callers check them
+(:func:`zrp_ga.model.kinematics.check_layout`, :func:`zrp_ga.model.error_model.jacobian_arrays`).
 
 Layout: the population is the last axis, U (n, 3, P), B (n+1, 3, P), H (3, 3, P) for the axes,
 body vectors and hand orientations of P parameter sets; per pose and joint the numbers
@@ -214,3 +221,140 @@ def residual_matrix(U, B, H, c, s, v, t, p_meas, wp, R_meas, use_rot, out, k0, k
         out0, out1 = out[0, p0 : p0 + w], out[1, p0 : p0 + w]
         for p in range(w):
             out0[p], out1[p] = acc[0, p], acc[1, p]
+
+
+# --- the hand poses of a population -------------------------------------------------------------
+@jit
+def _forward_chain(U, B, H, c, s, t, X):  # pragma: no cover - compiled
+    """All P parameter sets at one pose, in place: X (12, P), rows 0-2 the position p, rows
+    3 + 3j .. 5 + 3j column j of R_h. U (n, 3, P), B (n+1, 3, P), H (3, 3, P): the population
+    is the innermost axis, so each loop below runs over it with the pose's numbers fixed and
+    compiles to SIMD code. c, s, t (n,) of the pose. No branch: one in the joint loop cost a
+    factor 3 (the loops stopped vectorising). zrp_ga 0.1's kernel, operation for operation."""
+    n, P = U.shape[0], U.shape[2]
+    for p in range(P):
+        for k in range(3):
+            X[k, p] = B[n, k, p]
+            for j in range(3):
+                X[3 + 3 * j + k, p] = H[k, j, p]
+    for i in range(n - 1, -1, -1):
+        Ux, Uy, Uz = U[i, 0], U[i, 1], U[i, 2]
+        ci, si = c[i], s[i]
+        vi = 1.0 - ci
+        for v in range(4):
+            Xx, Xy, Xz = X[3 * v], X[3 * v + 1], X[3 * v + 2]
+            for p in range(P):
+                ux, uy, uz = Ux[p], Uy[p], Uz[p]
+                x, y, z = Xx[p], Xy[p], Xz[p]
+                d = (ux * x + uy * y + uz * z) * vi
+                Xx[p] = ci * x + si * (uy * z - uz * y) + d * ux
+                Xy[p] = ci * y + si * (uz * x - ux * z) + d * uy
+                Xz[p] = ci * z + si * (ux * y - uy * x) + d * uz
+        ti = t[i]
+        for k in range(3):
+            Bk, Uk, Xk = B[i, k], U[i, k], X[k]
+            for p in range(P):
+                Xk[p] += Bk[p] + ti * Uk[p]
+
+
+@jit
+def forward_kernel(U, B, H, c, s, t, R_out, p_out):  # pragma: no cover - compiled
+    """Hand orientations R_out (P, M, 3, 3) and positions p_out (P, M, 3) of P parameter sets
+    at M poses; c, s, t (M, n)."""
+    X = np.empty((12, U.shape[2]))
+    for m in range(c.shape[0]):
+        _forward_chain(U, B, H, c[m], s[m], t[m], X)
+        for p in range(U.shape[2]):
+            for k in range(3):
+                p_out[p, m, k] = X[k, p]
+                for j in range(3):
+                    R_out[p, m, k, j] = X[3 + 3 * j + k, p]
+
+
+# --- the pose Jacobians ----------------------------------------------------------------------------
+@jit
+def jacobian_kernel(u0, b0, prism, c, s, q, J, Rn):  # pragma: no cover - compiled
+    """Columns 0 .. 6n-1 of J (M, 6, K), K >= 6n, zeros on entry, and the hand rotation R_n
+    (M, 3, 3), pose by pose: the rotations and their prefix products R_{i-1}, the tail sums E_i,
+    then per joint i and axis component k the blocks of Eq. (25-27): J1 = vee(R_{i-1} dR_k R_i^T
+    R_{i-1}^T), J3 = R_{i-1} dR_k E_i (q_i R_{i-1} e_k for a prismatic joint), J4 = R_i for the
+    body vector after joint i. u0 (n, 3), b0 (n+1, 3), prism (n,), c, s = cos q, sin q and q
+    (M, n). Loops over 3-vectors into preallocated arrays: small numpy temporaries made the
+    compiled version no faster than the numpy reference."""
+    M, n = q.shape
+    Rot = np.empty((n, 3, 3))
+    Rp = np.empty((n + 1, 3, 3))
+    E = np.empty((n, 3))
+    dR, A, W = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    for m in range(M):
+        for i in range(n):
+            _jac_rotation(u0[i], c[m, i], s[m, i], prism[i], Rot[i])
+        Rp[0] = np.eye(3)
+        for i in range(n):
+            _jac_matmul(Rp[i], Rot[i], Rp[i + 1])
+        E[n - 1] = b0[n]
+        for i in range(n - 2, -1, -1):
+            t = q[m, i + 1] if prism[i + 1] else 0.0
+            for a in range(3):
+                E[i, a] = b0[i + 1, a] + t * u0[i + 1, a]
+                for b in range(3):
+                    E[i, a] += Rot[i + 1, a, b] * E[i + 1, b]
+        for i in range(n):
+            for k in range(3):
+                col = 3 * i + k
+                if prism[i]:
+                    for a in range(3):
+                        J[m, 3 + a, col] = q[m, i] * Rp[i, a, k]
+                    continue
+                _jac_rotation_derivative(u0[i], c[m, i], s[m, i], k, dR)
+                _jac_matmul(Rp[i], dR, A)  # R_{i-1} dR_k
+                for a in range(3):
+                    J[m, 3 + a, col] = A[a, 0] * E[i, 0] + A[a, 1] * E[i, 1] + A[a, 2] * E[i, 2]
+                    for b in range(3):  # W = A R_i^T R_{i-1}^T = A (R_{i-1} R_i)^T
+                        W[a, b] = A[a, 0] * Rp[i + 1, b, 0] + A[a, 1] * Rp[i + 1, b, 1] + A[a, 2] * Rp[i + 1, b, 2]
+                J[m, 0, col] = 0.5 * (W[2, 1] - W[1, 2])
+                J[m, 1, col] = 0.5 * (W[0, 2] - W[2, 0])
+                J[m, 2, col] = 0.5 * (W[1, 0] - W[0, 1])
+            for a in range(3):
+                for b in range(3):
+                    J[m, 3 + a, 3 * n + 3 * i + b] = Rp[i + 1, a, b]
+        Rn[m] = Rp[n]
+
+
+@jit
+def _jac_matmul(A, B, out):  # pragma: no cover - compiled
+    for a in range(3):
+        for b in range(3):
+            out[a, b] = A[a, 0] * B[0, b] + A[a, 1] * B[1, b] + A[a, 2] * B[2, b]
+
+
+@jit
+def _jac_rotation(u, c, s, prismatic, out):  # pragma: no cover - compiled
+    """Rodrigues' R(q, u) = V (u u^T - I) + S [u]x + I (Eq. 6-8) into out, c, s = cos q, sin q;
+    I for a prismatic joint."""
+    if prismatic:
+        out[:] = np.eye(3)
+        return
+    v = 1.0 - c
+    for a in range(3):
+        for b in range(3):
+            out[a, b] = v * u[a] * u[b] + (c if a == b else 0.0)
+    out[0, 1] -= s * u[2]
+    out[0, 2] += s * u[1]
+    out[1, 0] += s * u[2]
+    out[1, 2] -= s * u[0]
+    out[2, 0] -= s * u[1]
+    out[2, 1] += s * u[0]
+
+
+@jit
+def _jac_rotation_derivative(u, c, s, k, out):  # pragma: no cover - compiled
+    """dR/du_k = V (e_k u^T + u e_k^T) + S [e_k]x (Eq. 9-10) into out, c, s = cos q, sin q."""
+    v = 1.0 - c
+    out[:] = 0.0
+    for b in range(3):
+        out[k, b] += v * u[b]
+        out[b, k] += v * u[b]
+    k1, k2 = (k + 1) % 3, (k + 2) % 3  # [e_k]x: +1 at (k2, k1), -1 at (k1, k2)
+    out[k2, k1] += s
+    out[k1, k2] -= s

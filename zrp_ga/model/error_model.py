@@ -23,8 +23,8 @@ import dataclasses
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zrp_ga.core.compiled import jit
-from zrp_ga.model import so3
+from zrp_ga.core import compiled as compiled_code
+from zrp_ga.model import _numpy_kernels, so3
 from zrp_ga.model.kinematics import check_q
 from zrp_ga.model.layout import Layout, parameter_names, slides  # noqa: F401 (parameter_names: the Jacobian's columns, named here as before)
 from zrp_ga.model.robot import ZRPRobot
@@ -63,18 +63,31 @@ def pose_jacobians(robot: ZRPRobot, q: ArrayLike, base: bool = False, hand: bool
 def jacobian_arrays(
     u0: Array, b0: Array, prism: NDArray[np.bool_], q: Array, base: bool = False, hand: bool = False, compiled: bool = True
 ) -> Array:
-    """:func:`pose_jacobians` on raw arrays, u0 (n, 3) not necessarily unit, q (M, n); no checks.
-    The compiled kernel :func:`_jacobian_kernel` computes the 6n columns pose by pose;
+    """:func:`pose_jacobians` on raw arrays, u0 (n, 3) not necessarily unit, b0 (n+1, 3), prism
+    (n,), q (M, n); shapes checked, values not. The kernel ``jacobian_kernel`` of
+    :mod:`zrp_ga.model._kernels` computes the 6n columns pose by pose (compiled, or its numpy twin
+    for small problems, the same bits: :func:`zrp_ga.core.compiled.call`);
     :func:`jacobian_reference` (``compiled=False``) is the same in readable numpy, equal to
     round-off (the tests hold them together)."""
     if not compiled:
         return jacobian_reference(u0, b0, prism, q, base, hand)
     q = np.ascontiguousarray(q, dtype=float)
+    u0, b0 = np.ascontiguousarray(u0, dtype=float), np.ascontiguousarray(b0, dtype=float)
+    prism = np.ascontiguousarray(prism, dtype=np.bool_)
     M, n = q.shape
+    if n < 1 or u0.shape != (n, 3) or b0.shape != (n + 1, 3) or prism.shape != (n,):
+        raise ValueError(f"jacobian_arrays: expected u0 ({n}, 3), b0 ({n + 1}, 3), prism ({n},) for q {q.shape}, "
+                         f"got {u0.shape}, {b0.shape}, {prism.shape}")  # fmt: skip
     J = np.zeros((M, 6, 6 * n + 3 * base + 3 * hand))
     Rn = np.empty((M, 3, 3))
-    _jacobian_kernel(np.ascontiguousarray(u0, dtype=float), np.ascontiguousarray(b0, dtype=float),
-                     np.asarray(prism, dtype=np.bool_), q, J, Rn)  # fmt: skip
+    c, s = np.cos(q), np.sin(q)
+
+    def kernel():
+        from zrp_ga.model import _kernels
+
+        _kernels.jacobian_kernel(u0, b0, prism, c, s, q, J, Rn)
+
+    compiled_code.call("jacobian", M * n * n, kernel, lambda: _numpy_kernels.jacobian(u0, b0, prism, c, s, q, J, Rn))
     col = 6 * n
     if base:
         J[:, 3:6, col : col + 3] = np.eye(3)
@@ -82,93 +95,6 @@ def jacobian_arrays(
     if hand:
         J[:, 0:3, col : col + 3] = Rn
     return J
-
-
-@jit
-def _jacobian_kernel(u0, b0, prism, q, J, Rn):  # pragma: no cover - compiled
-    """Columns 0 .. 6n-1 of J (M, 6, K) and the hand rotation R_n (M, 3, 3), pose by pose:
-    the rotations and their prefix products R_{i-1}, the tail sums E_i, then per joint i and
-    axis component k the blocks of Eq. (25-27): J1 = vee(R_{i-1} dR_k R_i^T R_{i-1}^T),
-    J3 = R_{i-1} dR_k E_i (q_i R_{i-1} e_k for a prismatic joint), J4 = R_i for the body vector
-    after joint i. Loops over 3-vectors into preallocated arrays: small numpy temporaries made
-    the compiled version no faster than the numpy reference."""
-    M, n = q.shape
-    Rot = np.empty((n, 3, 3))
-    Rp = np.empty((n + 1, 3, 3))
-    E = np.empty((n, 3))
-    dR, A, W = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
-    for m in range(M):
-        for i in range(n):
-            _rotation(u0[i], q[m, i], prism[i], Rot[i])
-        Rp[0] = np.eye(3)
-        for i in range(n):
-            _matmul(Rp[i], Rot[i], Rp[i + 1])
-        E[n - 1] = b0[n]
-        for i in range(n - 2, -1, -1):
-            t = q[m, i + 1] if prism[i + 1] else 0.0
-            for a in range(3):
-                E[i, a] = b0[i + 1, a] + t * u0[i + 1, a]
-                for b in range(3):
-                    E[i, a] += Rot[i + 1, a, b] * E[i + 1, b]
-        for i in range(n):
-            for k in range(3):
-                col = 3 * i + k
-                if prism[i]:
-                    for a in range(3):
-                        J[m, 3 + a, col] = q[m, i] * Rp[i, a, k]
-                    continue
-                _rotation_derivative(u0[i], q[m, i], k, dR)
-                _matmul(Rp[i], dR, A)  # R_{i-1} dR_k
-                for a in range(3):
-                    J[m, 3 + a, col] = A[a, 0] * E[i, 0] + A[a, 1] * E[i, 1] + A[a, 2] * E[i, 2]
-                    for b in range(3):  # W = A R_i^T R_{i-1}^T = A (R_{i-1} R_i)^T
-                        W[a, b] = A[a, 0] * Rp[i + 1, b, 0] + A[a, 1] * Rp[i + 1, b, 1] + A[a, 2] * Rp[i + 1, b, 2]
-                J[m, 0, col] = 0.5 * (W[2, 1] - W[1, 2])
-                J[m, 1, col] = 0.5 * (W[0, 2] - W[2, 0])
-                J[m, 2, col] = 0.5 * (W[1, 0] - W[0, 1])
-            for a in range(3):
-                for b in range(3):
-                    J[m, 3 + a, 3 * n + 3 * i + b] = Rp[i + 1, a, b]
-        Rn[m] = Rp[n]
-
-
-@jit
-def _matmul(A, B, out):  # pragma: no cover - compiled
-    for a in range(3):
-        for b in range(3):
-            out[a, b] = A[a, 0] * B[0, b] + A[a, 1] * B[1, b] + A[a, 2] * B[2, b]
-
-
-@jit
-def _rotation(u, q, prismatic, out):  # pragma: no cover - compiled
-    """Rodrigues' R(q, u) = V (u u^T - I) + S [u]x + I (Eq. 6-8) into out; I for a prismatic joint."""
-    if prismatic:
-        out[:] = np.eye(3)
-        return
-    c, s = np.cos(q), np.sin(q)
-    v = 1.0 - c
-    for a in range(3):
-        for b in range(3):
-            out[a, b] = v * u[a] * u[b] + (c if a == b else 0.0)
-    out[0, 1] -= s * u[2]
-    out[0, 2] += s * u[1]
-    out[1, 0] += s * u[2]
-    out[1, 2] -= s * u[0]
-    out[2, 0] -= s * u[1]
-    out[2, 1] += s * u[0]
-
-
-@jit
-def _rotation_derivative(u, q, k, out):  # pragma: no cover - compiled
-    """dR/du_k = V (e_k u^T + u e_k^T) + S [e_k]x (Eq. 9-10) into out."""
-    v, s = 1.0 - np.cos(q), np.sin(q)
-    out[:] = 0.0
-    for b in range(3):
-        out[k, b] += v * u[b]
-        out[b, k] += v * u[b]
-    k1, k2 = (k + 1) % 3, (k + 2) % 3  # [e_k]x: +1 at (k2, k1), -1 at (k1, k2)
-    out[k2, k1] += s
-    out[k1, k2] -= s
 
 
 def jacobian_reference(u0: Array, b0: Array, prism: NDArray[np.bool_], q: Array, base: bool = False, hand: bool = False) -> Array:

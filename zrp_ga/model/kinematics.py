@@ -17,6 +17,10 @@ four vectors (the position and the three columns of ``R_h0``) by Rodrigues' form
 the innermost axis of the compiled loops, so each joint's update compiles to SIMD code. numba
 because no numpy formulation of the many tiny 3-vector updates came near (1.1 M pose
 evaluations per second with numpy, 9 M with one compiled loop per parameter set and pose).
+Small problems, where compiling does not pay, run the same operations in numpy
+(:mod:`zrp_ga.model._numpy_kernels`, the same bits) until :func:`zrp_ga.core.compiled.call`
+switches to the compiled kernels; the kernels are in :mod:`zrp_ga.model._kernels`, imported
+(with numba) only then.
 
 The pose costs have three kernels (``kernel=``, see :mod:`zrp_ga.model._kernels` and
 experiments/README.md, section f, for their speeds; ranges of three runs):
@@ -39,57 +43,11 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zrp_ga.core.compiled import jit
-from zrp_ga.model import _kernels, so3
+from zrp_ga.core import compiled
+from zrp_ga.model import _numpy_kernels, so3
 from zrp_ga.model.robot import ZRPRobot
 
 Array = NDArray[np.float64]
-
-
-@jit
-def _chain(U, B, H, c, s, t, X):  # pragma: no cover - compiled
-    """All P parameter sets at one pose, in place: X (12, P), rows 0-2 the position p, rows
-    3 + 3j .. 5 + 3j column j of R_h. U (n, 3, P), B (n+1, 3, P), H (3, 3, P): the population
-    is the innermost axis, so each loop below runs over it with the pose's numbers fixed and
-    compiles to SIMD code. Per joint: c, s = cos q, sin q (1, 0 for a prismatic joint, so that
-    its rotation is exactly the identity) and t = q for a prismatic joint, else 0. No branch:
-    one in the joint loop cost a factor 3 (the loops stopped vectorising)."""
-    n, P = U.shape[0], U.shape[2]
-    for p in range(P):
-        for k in range(3):
-            X[k, p] = B[n, k, p]
-            for j in range(3):
-                X[3 + 3 * j + k, p] = H[k, j, p]
-    for i in range(n - 1, -1, -1):
-        Ux, Uy, Uz = U[i, 0], U[i, 1], U[i, 2]
-        ci, si = c[i], s[i]
-        vi = 1.0 - ci
-        for v in range(4):
-            Xx, Xy, Xz = X[3 * v], X[3 * v + 1], X[3 * v + 2]
-            for p in range(P):
-                ux, uy, uz = Ux[p], Uy[p], Uz[p]
-                x, y, z = Xx[p], Xy[p], Xz[p]
-                d = (ux * x + uy * y + uz * z) * vi
-                Xx[p] = ci * x + si * (uy * z - uz * y) + d * ux
-                Xy[p] = ci * y + si * (uz * x - ux * z) + d * uy
-                Xz[p] = ci * z + si * (ux * y - uy * x) + d * uz
-        ti = t[i]
-        for k in range(3):
-            Bk, Uk, Xk = B[i, k], U[i, k], X[k]
-            for p in range(P):
-                Xk[p] += Bk[p] + ti * Uk[p]
-
-
-@jit
-def _forward_kernel(U, B, H, c, s, t, R_out, p_out):  # pragma: no cover
-    X = np.empty((12, U.shape[2]))
-    for m in range(c.shape[0]):
-        _chain(U, B, H, c[m], s[m], t[m], X)
-        for p in range(U.shape[2]):
-            for k in range(3):
-                p_out[p, m, k] = X[k, p]
-                for j in range(3):
-                    R_out[p, m, k, j] = X[3 + 3 * j + k, p]
 
 
 def check_q(q: ArrayLike, n: int, name: str = "q") -> Array:
@@ -140,7 +98,8 @@ def joint_terms(q: Array, prismatic: ArrayLike | None) -> tuple[Array, Array, Ar
 def forward_batch(
     u0: ArrayLike, b0: ArrayLike, R_h0: ArrayLike, q: ArrayLike, prismatic: ArrayLike | None = None
 ) -> tuple[Array, Array]:
-    """Hand poses of P parameter sets at M poses, in one compiled call.
+    """Hand poses of P parameter sets at M poses, in one call of a kernel (compiled, or its
+    numpy twin for small problems: the same numbers).
 
     u0 (P, n, 3), b0 (P, n+1, 3), R_h0 (3, 3) or (P, 3, 3), q (M, n) (rad for revolute, m for
     prismatic joints), prismatic (n,) bool. Returns R (P, M, 3, 3) and p (P, M, 3), m.
@@ -151,7 +110,14 @@ def forward_batch(
     q = np.atleast_2d(check_q(q, n))
     R = np.empty((P, q.shape[0], 3, 3))
     p = np.empty((P, q.shape[0], 3))
-    _forward_kernel(U, B, H, *joint_terms(q, prismatic), R, p)
+    c, s, t = (_kernel_array(a) for a in joint_terms(q, prismatic))
+
+    def compiled_call():
+        from zrp_ga.model import _kernels
+
+        _kernels.forward_kernel(U, B, H, c, s, t, R, p)
+
+    compiled.call("forward", P * q.shape[0] * max(n, 1), compiled_call, lambda: _numpy_kernels.forward(U, B, H, c, s, t, R, p))
     return R, p
 
 
@@ -197,8 +163,9 @@ def residual_sums_unchecked(
 ) -> Array:
     """:func:`residual_sums` for callers that hold the kernels' layout already (the GA's fitness):
     U (n, 3, P), B (n+1, 3, P), H (3, 3, P), ``terms = joint_terms(q, prismatic)``, p_meas (M, 3),
-    R_meas (M, 3, 3) or None, ``weights`` (M, 3) on the position errors (ones if None). No shape
-    checks. Returns (2, P): the sums of |dr|^2 (rad^2) and of |weights * dp|^2 (m^2).
+    R_meas (M, 3, 3) or None, ``weights`` (M, 3) on the position errors (ones if None); their
+    shapes checked (:func:`check_layout`), nothing else. Returns (2, P): the sums of |dr|^2
+    (rad^2) and of |weights * dp|^2 (m^2).
 
     ``kernel``: ``"rodrigues"`` (bit-identical to :func:`forward_batch` and to zrp_ga 0.1),
     ``"matrix"`` (float64, about twice as fast, last bits differ) or ``"float32"`` (for ranking a
@@ -216,15 +183,33 @@ def residual_sums_unchecked(
     R = _kernel_array(R_meas) if use_rot else np.zeros((M, 3, 3))
     wp = np.ones((M, 3)) if weights is None else _kernel_array(weights)
     c, s, t = (_kernel_array(a) for a in terms)
+    check_layout(U, B, H, c, s, t, p_meas, wp, R)
     out = np.empty((2, P))
     if kernel == "rodrigues":
-        fn, args = _kernels.residual_rodrigues, (U, B, H, c, s, t, p_meas, wp, R, use_rot, out)
-    else:
+        args = (U, B, H, c, s, t, p_meas, wp, R, use_rot, out)
+        compiled.call("residual", P * M * U.shape[0], lambda: _run_chunks("residual_rodrigues", args, P, M, threads),
+                      lambda: _numpy_kernels.residual_rodrigues(*args))  # fmt: skip
+    else:  # the matrix forms are compiled only (fused multiply-add has no numpy twin)
         ft = np.float32 if kernel == "float32" else np.float64
         c, s, v, t = (a.astype(ft) for a in (c, s, 1.0 - c, t))
-        fn, args = _kernels.residual_matrix, (U, B, H, c, s, v, t, p_meas, wp, R, use_rot, out)
-    _run_chunks(fn, args, P, M, threads)
+        _run_chunks("residual_matrix", (U, B, H, c, s, v, t, p_meas, wp, R, use_rot, out), P, M, threads)
     return out
+
+
+def check_layout(U: Array, B: Array, H: Array, c: Array, s: Array, t: Array, p_meas: Array, wp: Array, R: Array) -> None:
+    """ValueError unless the kernels' arrays have the shapes they index: U (n, 3, P) with n >= 1,
+    B (n+1, 3, P), H (3, 3, P), c, s, t (M, n), p_meas and wp (M, 3), R (M, 3, 3). The compiled
+    kernels check no index (numba does not), so a wrong shape here would read or write past an
+    array's end."""
+    n, P = U.shape[0], U.shape[-1]
+    M = c.shape[0] if c.ndim == 2 else -1
+    expected = {"U": (U, (n, 3, P)), "B": (B, (n + 1, 3, P)), "H": (H, (3, 3, P)), "c": (c, (M, n)), "s": (s, (M, n)),
+                "t": (t, (M, n)), "p_meas": (p_meas, (M, 3)), "weights": (wp, (M, 3)), "R_meas": (R, (M, 3, 3))}  # fmt: skip
+    if U.ndim != 3 or n < 1:
+        raise ValueError(f"U: expected shape (n, 3, P) with n >= 1, got {U.shape}")
+    for name, (a, shape) in expected.items():
+        if a.shape != shape:
+            raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
 
 
 def _usable_cores() -> int:
@@ -236,9 +221,13 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_POOLS.clear)  # a forked child has none of the parent's threads
 
 
-def _run_chunks(fn, args: tuple, P: int, M: int, threads: int | None) -> None:
-    """``fn(*args, k0, k1)`` over the population's chunks, split between ``threads`` threads
-    (the kernels release the GIL); the calling thread takes the first share."""
+def _run_chunks(name: str, args: tuple, P: int, M: int, threads: int | None) -> None:
+    """The compiled kernel ``_kernels.<name>(*args, k0, k1)`` over the population's chunks, split
+    between ``threads`` threads (the kernels release the GIL); the calling thread takes the first
+    share."""
+    from zrp_ga.model import _kernels
+
+    fn = getattr(_kernels, name)
     chunks = -(-P // _kernels.LANES)
     if threads is None:
         threads = _usable_cores() if P * M >= AUTO_THREADS_MIN_EVALS else 1

@@ -7,7 +7,7 @@ Every operator keeps DEAP's calling convention and changes its arguments in plac
 argument may be one genome (K,) or a batch of genomes (N, K), each row varied independently, so
 that the GA varies a whole generation in a few numpy calls; random numbers come from the
 ``numpy.random.Generator`` passed in, drawn for the whole batch at once, and the segment moves
-are small compiled loops. Any other function named in a config, DEAP's own operators
+are numpy gathers. Any other function named in a config, DEAP's own operators
 (``deap.tools.cxBlend``) included, is applied one individual at a time through
 :mod:`zrp_ga.operators.deap_adapter` (slower; for comparison). Whichever it is, :func:`target`
 checks its parameters before any work: known to the function, in range, none missing.

@@ -1,7 +1,12 @@
 """What the batched operators share: genomes as rows of a batch (:func:`rows`), random segments
-and blocks drawn for a whole batch, the compiled segment moves, the :func:`batched` mark that
+and blocks drawn for a whole batch, the segment moves, the :func:`batched` mark that
 tells :func:`zrp_ga.operators.build` an operator takes a whole generation, and the random
 streams of several runs (:class:`Streams`) through which one call varies the rows of many runs.
+
+The segment moves (:func:`reverse_segments`, :func:`rotate_segments`, :func:`swap_segments`)
+are numpy gathers over the whole batch: every index they use is checked by numpy, so that no
+genome size (one gene included) can make them write outside a genome, and nothing is compiled.
+A segment of fewer than two genes (a genome, or a block, of one gene) is left as it is.
 
 Runs evolved together (:func:`zrp_ga.algorithms.ga.step_together`) pass an operator the rows of
 all the runs that use it, one run's rows after another's, with a :class:`Streams` as ``rng``:
@@ -17,8 +22,6 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-
-from zrp_ga.core.compiled import jit
 
 Array = NDArray[np.float64]
 
@@ -66,53 +69,66 @@ def draw(rng: np.random.Generator | Streams, n: int, fn: Callable[[np.random.Gen
 
 def segments(rng: np.random.Generator | Streams, lo: NDArray | int, hi: NDArray | int, N: int) -> tuple[NDArray, NDArray]:
     """N random segments [i, j], i < j, uniform over the pairs of loci in [lo, hi) (per row or
-    shared). Drawn from one ``rng.random`` call: ``rng.integers`` with array bounds costs 10x."""
+    shared); where [lo, hi) holds fewer than two loci, there is no pair and the segment is
+    [lo, lo] (a move of one gene or none: nothing moves). Drawn from one ``rng.random`` call
+    (two numbers per row, whatever the span): ``rng.integers`` with array bounds costs 10x."""
     span = np.asarray(hi) - np.asarray(lo)
     r = draw(rng, N, lambda g, n: g.random((2, n)), axis=1)
     x = (r[0] * span).astype(np.intp)
     y = (r[1] * (span - 1)).astype(np.intp)
     y += y >= x
-    return lo + np.minimum(x, y), lo + np.maximum(x, y)
+    pair = span >= 2
+    return lo + np.where(pair, np.minimum(x, y), 0), lo + np.where(pair, np.maximum(x, y), 0)
 
 
 def block_bounds(rng: np.random.Generator, N: int, blocks: list[tuple[int, int]]) -> tuple[NDArray, NDArray]:
     """Per row, the [lo, hi) of a block chosen with probability proportional to its size
-    (blocks of fewer than two genes never chosen)."""
-    usable = np.array([(a, b) for a, b in blocks if b - a >= 2])
+    (blocks of fewer than two genes never chosen; [0, 0) for every row if no block has two)."""
+    usable = np.array([(a, b) for a, b in blocks if b - a >= 2], dtype=np.intp).reshape(-1, 2)
     sizes = usable[:, 1] - usable[:, 0]
-    pick = np.searchsorted(np.cumsum(sizes), draw(rng, N, lambda g, n: g.random(n)) * sizes.sum(), side="right")
+    u = draw(rng, N, lambda g, n: g.random(n))
+    if not len(usable):
+        return np.zeros(N, dtype=np.intp), np.zeros(N, dtype=np.intp)
+    pick = np.searchsorted(np.cumsum(sizes), u * sizes.sum(), side="right")
     return usable[pick, 0], usable[pick, 1]
 
 
-@jit
-def reverse_segments(A, i, j):  # pragma: no cover - compiled
-    """Reverse ``A[r, i[r] .. j[r]]`` (inclusive) of every row in place."""
-    for r in range(A.shape[0]):
-        a, b = i[r], j[r]
-        while a < b:
-            A[r, a], A[r, b] = A[r, b], A[r, a]
-            a += 1
-            b -= 1
+def _gather(A: Array, source: NDArray[np.intp]) -> None:
+    """``A[r, k] = A[r, source[r, k]]`` for every row at once, in place (numpy checks the indices)."""
+    A[:] = np.take_along_axis(A, source, axis=1)
 
 
-@jit
-def rotate_segments(A, i, j, shift):  # pragma: no cover - compiled
-    """Shift ``A[r, i[r] .. j[r]]`` (inclusive) cyclically right by ``shift[r]`` places, in place."""
-    buf = np.empty(A.shape[1])
-    for r in range(A.shape[0]):
-        length = j[r] - i[r] + 1
-        for k in range(length):
-            buf[(k + shift[r]) % length] = A[r, i[r] + k]
-        for k in range(length):
-            A[r, i[r] + k] = buf[k]
+def _inside(A: Array, i: NDArray, j: NDArray) -> tuple[NDArray, NDArray[np.bool_]]:
+    """The loci (1, K) and, per row, which lie in [i, j] (N, K)."""
+    k = np.arange(A.shape[1])[None]
+    return k, (k >= np.asarray(i)[:, None]) & (k <= np.asarray(j)[:, None])
 
 
-@jit
-def swap_segments(A, B, lo, hi):  # pragma: no cover - compiled
+def reverse_segments(A: Array, i: NDArray, j: NDArray) -> None:
+    """Reverse ``A[r, i[r] .. j[r]]`` (inclusive) of every row in place: locus k of the segment
+    takes the gene at i + j - k. A row with j <= i is left as it is."""
+    A = rows(A)
+    k, inside = _inside(A, i, j)
+    _gather(A, np.where(inside, np.asarray(i)[:, None] + np.asarray(j)[:, None] - k, k))
+
+
+def rotate_segments(A: Array, i: NDArray, j: NDArray, shift: NDArray) -> None:
+    """Shift ``A[r, i[r] .. j[r]]`` (inclusive) cyclically right by ``shift[r]`` places, in
+    place: locus k of the segment takes the gene at i + ((k - i - shift) mod (j - i + 1))."""
+    A = rows(A)
+    k, inside = _inside(A, i, j)
+    i, length = np.asarray(i)[:, None], np.maximum(np.asarray(j) - np.asarray(i) + 1, 1)[:, None]
+    _gather(A, np.where(inside, i + (k - i - np.asarray(shift)[:, None]) % length, k))
+
+
+def swap_segments(A: Array, B: Array, lo: NDArray, hi: NDArray) -> None:
     """Swap ``A[r, lo[r]:hi[r]]`` with ``B[r, lo[r]:hi[r]]`` for every row, in place."""
-    for r in range(A.shape[0]):
-        for k in range(lo[r], hi[r]):
-            A[r, k], B[r, k] = B[r, k], A[r, k]
+    A, B = rows(A), rows(B)
+    k = np.arange(A.shape[1])[None]
+    mask = (k >= np.asarray(lo)[:, None]) & (k < np.asarray(hi)[:, None])
+    a = A.copy()  # numpy slices are views: swap through a copy
+    np.copyto(A, B, where=mask)
+    np.copyto(B, a, where=mask)
 
 
 def batched(fn: Callable | None = None, *, streams: bool = False) -> Callable:

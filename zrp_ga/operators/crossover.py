@@ -20,9 +20,12 @@ def _swap(A: Array, B: Array, mask: np.ndarray) -> None:
 
 @batched(streams=True)
 def one_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array, Array]:
-    """Swap the tails after a random cut point in 1..K-1."""
+    """Swap the tails after a random cut point in 1..K-1 (a genome of one gene has no cut point:
+    unchanged, nothing drawn)."""
     A, B = rows(ind1), rows(ind2)
     N, K = A.shape
+    if K < 2:
+        return ind1, ind2
     cut = draw(rng, N, lambda g, n: g.integers(1, K, size=n))
     swap_segments(A, B, cut, np.full(N, K))
     return ind1, ind2
@@ -30,10 +33,14 @@ def one_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array
 
 @batched(streams=True)
 def two_point(ind1: Array, ind2: Array, rng: np.random.Generator) -> tuple[Array, Array]:
-    """Swap the genes between two distinct random cut points in 1..K-1."""
+    """Swap the genes between two distinct random cut points in 1..K-1. With K = 2 there is one
+    cut point: the second gene is swapped; with K = 1 none: unchanged. Two numbers
+    drawn per pair whatever K."""
     A, B = rows(ind1), rows(ind2)
     N, K = A.shape
     lo, hi = segments(rng, 1, K, N)  # two distinct cut points in 1..K-1
+    if K == 2:
+        lo, hi = np.ones(N, dtype=np.intp), np.full(N, 2)
     swap_segments(A, B, lo, hi)
     return ind1, ind2
 

@@ -405,9 +405,11 @@ def warm_up(cfg: DictConfig, cache: Cache = CACHE) -> None:
     import numpy as np
     from threadpoolctl import threadpool_limits
 
+    from zrp_ga.core import compiled
     from zrp_ga.io import records  # noqa: F401 (imported for the runs)
     from zrp_ga.run import callbacks, checkpoint, summary  # noqa: F401 (imported for the runs)
 
+    compiled.prefer_compiled()  # a sweep's runs pay for compiling: load the kernels here, once, not in each worker
     try:
         p = build(task_config(cfg), None, None, {}, cache)
         with threadpool_limits(limits=1, user_api="blas"):
