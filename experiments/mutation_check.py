@@ -37,6 +37,7 @@ WARN = "tests/test_warning_paths.py"
 MODEL = ["tests/test_so3.py", "tests/test_kinematics.py"]
 UNITS = ["tests/test_measurement_files.py", "tests/test_measurement_units.py"]
 REPORT_STATS = ["tests/test_report_stats.py", "tests/test_report.py"]
+REPORT_SENTENCES = ["tests/test_report_sentences.py"]
 SHAPES = "tests/test_operators_shapes.py"
 KERNELS = "tests/test_kernels.py"
 SURVIVAL = "tests/test_survival.py"
@@ -202,6 +203,20 @@ PLANTS: list[dict] = [
     dict(name="nemenyi-p-no-sqrt2", file="zrp_ga/report/stats.py",
          old="q = math.sqrt(2) * abs(mean[a] - mean[b]) / se", new="q = abs(mean[a] - mean[b]) / se",
          tests=REPORT_STATS, what="Nemenyi: pairwise p-values without the factor sqrt 2"),
+    # --- the report's sentences (issue 27): against made-up studies whose answers are known ------------
+    dict(name="report-worst-named-best", file="zrp_ga/report/compare.py",
+         old='best = g.groupby("configuration", sort=False)[q["column"]].median().idxmin()',
+         new='best = g.groupby("configuration", sort=False)[q["column"]].median().idxmax()',
+         tests=REPORT_SENTENCES, what="report: the configuration with the highest median named the best of its instance"),
+    dict(name="report-lost-counted-beaten", file="zrp_ga/report/stats.py",
+         old="return BETTER if direction > 0 else WORSE", new="return BETTER",
+         tests=REPORT_SENTENCES, what="report: a rival the configuration loses to (significantly) counted as beaten"),
+    dict(name="report-effect-wrong-side", file="zrp_ga/report/conclusions.py",
+         old='return str(row["a"]), FLIP.get(v, v), 1 - e, 1 - hi, 1 - lo', new='return str(row["a"]), FLIP.get(v, v), e, lo, hi',
+         tests=REPORT_SENTENCES, what="report: the effect P(best ends lower) given from the other side of the pair"),
+    dict(name="report-fifo-read", file="zrp_ga/report/runs.py",
+         old='        regular_file(path, f"a run\'s {name}")', new='        path.exists() or regular_file(path, f"a run\'s {name}")',
+         tests=["tests/test_report_runs.py"], what="report: a run's file that exists read without checking it is a regular file (a FIFO hangs it)"),
     # --- compensation (zrp_ga.compensation): frames, sizes, units, setups ---------------------------
     dict(name="comp-orientation-frame", file="zrp_ga/compensation/frames.py",
          old="return p @ T[:3, :3].T + T[:3, 3], None if R is None else T[:3, :3] @ R",
@@ -352,8 +367,8 @@ def write(out: Path, rows: list, argv: list[str] | None) -> None:
         "",
         "| plant | file | bug | tests | result | s | first failing test |",
         "| --- | --- | --- | --- | --- | ---: | --- |",
+        *table,
     ]
-    lines += table
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines) + "\n")
 

@@ -17,9 +17,11 @@ ALGORITHMS = {
 
 def fake_run(path: Path, instance: str, algorithm: str, rows: list[tuple[int, float]], *, final: float | None = None,
              nominal: float = 10.0, floor: float | None = None, seed: int = 0, initial: list[float] | None = None,
-             validation: float | None = 1.0, config: dict | None = None, choices: dict | None = None) -> Path:  # fmt: skip
+             validation: float | None = 1.0, config: dict | None = None, choices: dict | None = None,
+             stop_reason: str = "max_evals") -> Path:  # fmt: skip
     """A finished run in ``path``: ``rows`` are (evaluations, best cost) per generation; the final
-    cost is the last row's unless ``final`` is given (None there writes null, a diverged run)."""
+    cost is the last row's unless ``final`` is given (None there writes null, a diverged run);
+    ``stop_reason``: why it stopped (its budget, by default; anything else: by itself)."""
     path.mkdir(parents=True)
     lines = ["gen,nevals,best,mean"] + [f"{g},{e},{b!r},{b!r}" for g, (e, b) in enumerate(rows)]
     (path / "convergence.csv").write_text("\n".join(lines) + "\n")
@@ -30,6 +32,7 @@ def fake_run(path: Path, instance: str, algorithm: str, rows: list[tuple[int, fl
         "instance": instance, "algorithm": algorithm, "choices": {"algorithm": algorithm} if choices is None else choices, "seed": seed,
         "final_cost": cost, "initial_cost": rows[0][1], "nominal_cost": nominal,
         "final_over_initial": None if cost is None else cost / rows[0][1], "nevals": rows[-1][0], "wall_s": 0.1,
+        "stop_reason": stop_reason,
         "validation_rms_mm": {"nominal": None if validation is None else 10.0, "calibrated": validation},
         "best_genome": {"g1": 0.5, "g2": -0.25}, "config": {"algorithm": config or ALGORITHMS[algorithm], "seed": seed},
     }  # fmt: skip
@@ -38,3 +41,28 @@ def fake_run(path: Path, instance: str, algorithm: str, rows: list[tuple[int, fl
     (path / "summary.json").write_text(json.dumps(summary))
     (path / "status.json").write_text('{"status": "done"}')
     return path
+
+
+def many(root: Path, runs: int, configurations: int = 5, generations: int = 60, seed: int = 0) -> None:
+    """``runs`` made-up finished runs under ``root``: ``configurations`` crossovers on one
+    instance, each run its own seed (no two configurations share one: the independent-runs
+    design, whose effect sizes need the most memory), a GA-like trace of ``generations`` rows."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    names = ["blend", "sbx", "two_point", "one_point", "uniform", "x5", "x6", "x7", "x8", "x9"][:configurations]
+    for i in range(runs):
+        cx = names[i % configurations]
+        cfg = json.loads(json.dumps(ALGORITHMS["ga"]))
+        cfg["crossover"]["op"]["_target_"] = f"zrp_ga.operators.crossover.{cx}"
+        start, end = 10.0 * (1 + rng.random()), 1.0 + 0.1 * (i % configurations) + 0.5 * rng.random()
+        best = start * (end / start) ** (np.arange(generations) / (generations - 1))
+        rows = [(50 * (g + 1), float(b)) for g, b in enumerate(best)]
+        fake_run(root / f"run{i:05d}", "inst", "ga", rows, floor=1.0, seed=i, config=cfg, nominal=20.0,
+                 choices={"algorithm": "ga", "crossover": cx}, validation=float(0.5 + rng.random()))  # fmt: skip
+
+
+if __name__ == "__main__":  # python tests/report_fakes.py DIR RUNS: made-up runs to measure the report on
+    import sys
+
+    many(Path(sys.argv[1]), int(sys.argv[2]))

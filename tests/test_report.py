@@ -7,6 +7,7 @@ import math
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -58,15 +59,16 @@ def _exact_two_sided_p(x, y):
 def test_every_file_is_written(sweep, tmp_path):
     out = tmp_path / "report"
     t = report.write_report([sweep], out)
-    for name in ["index.html", "within_instances.csv", "factors_by_instance.md", "ecdf_targets.csv", "runs.csv", "tidy.csv", "summary.csv", "summary.md", "statistics.csv", "statistics.md", "factors.csv", "factors.md",
-                 "left_out.csv", "table2_initial_population.md", "table3_best_params.md", "targets.csv", "targets.md", "ert.csv",
-                 "ert.md", "ecdf.csv", "fixed_budget.csv", "fixed_budget.md", "per_instance.csv", "per_instance.md", "ranks.csv",
-                 "ranks.md"]:  # fmt: skip
+    for name in ["index.html", "within_instances.csv", "ecdf_targets.csv", "runs.csv", "tidy.csv", "summary.csv", "summary.md",
+                 "statistics.csv", "factors.csv", "left_out.csv", "table2_initial_population.md", "table3_best_params.md",
+                 "targets.csv", "targets.md", "ert.csv", "ert.md", "ecdf.csv", "fixed_budget.csv", "fixed_budget.md",
+                 "per_instance.csv", "per_instance.md", "ranks.csv", "ranks.md", "conclusions.json", "reference.csv"]:  # fmt: skip
         assert (out / name).stat().st_size > 0, name
+    assert not (out / "factors.md").exists()  # one setting varies: its values are the configurations, compared once
     drawn = t["friedman"]["p"] < 0.05  # the critical-difference diagram only where the test separates something
     for fig in ["fig2_convergence", "convergence_by_configuration", "ecdf_evals_to_target", "ecdf_by_instance",
                 "validation_error_boxplot"] + ["critical_difference"] * drawn:  # fmt: skip
-        assert (out / f"{fig}.png").stat().st_size > 10_000 and (out / f"{fig}.pdf").exists() and (out / f"{fig}.svg").exists(), fig
+        assert (out / f"{fig}.png").stat().st_size > 10_000 and (out / f"{fig}.pdf").exists(), fig
     assert (out / "critical_difference.png").exists() == drawn
     assert drawn or "No critical-difference diagram: Friedman finds no difference" in (out / "index.html").read_text()
     tidy = pd.read_csv(out / "tidy.csv")
@@ -76,7 +78,7 @@ def test_every_file_is_written(sweep, tmp_path):
     assert not list(tmp_path.glob(".report.*"))  # the staging folder is gone
 
 
-def test_summary_and_statistics_match_hand_computations(sweep, tmp_path):
+def test_summary_by_hand_and_the_seed_that_drew_the_instance_is_named(sweep, tmp_path):
     finals = _finals(sweep)
     target = float(np.median(np.concatenate(list(finals.values()))))
     tables = report.build_tables(report.find_runs([sweep])[0], report.TargetRule(absolute=target))
@@ -89,34 +91,13 @@ def test_summary_and_statistics_match_hand_computations(sweep, tmp_path):
         # numpy's linear percentile of three values: q1 halfway between the first two
         assert row["final_cost_q1"] == pytest.approx((s[0] + s[1]) / 2) and row["final_cost_q3"] == pytest.approx((s[1] + s[2]) / 2)
         assert row["success_rate"] == pytest.approx(np.mean(x <= target))
-
-    # Kruskal-Wallis by hand: ranks of the 9 final costs, H, and for 2 degrees of freedom p = exp(-H/2)
-    pooled = np.concatenate([finals[c] for c in CROSSOVERS])
-    ranks = pooled.argsort().argsort() + 1.0
-    N = len(pooled)
-    H = 12 / (N * (N + 1)) * sum(ranks[3 * i : 3 * i + 3].sum() ** 2 / 3 for i in range(3)) - 3 * (N + 1)
-    st = tables["statistics"]
-    kw = st[(st.metric == "final_cost") & (st.test == "Kruskal-Wallis")].iloc[0]
-    assert kw["statistic"] == pytest.approx(H) and kw["p"] == pytest.approx(math.exp(-H / 2))
-
-    # Mann-Whitney U, its exact p, Holm's correction and A12, by hand
-    pairs = st[(st.metric == "final_cost") & (st.test == "Mann-Whitney U")]
-    assert len(pairs) == 3
-    raw = []
-    for row in pairs.itertuples():
-        a = next(c for c in CROSSOVERS if labels[c] == row.a)
-        b = next(c for c in CROSSOVERS if labels[c] == row.b)
-        u = _u_greater(finals[a], finals[b])
-        assert row.statistic == pytest.approx(u)
-        assert row.a12 == pytest.approx(_u_greater(finals[b], finals[a]) / 9)  # P(a run of A ends lower)
-        assert row.p == pytest.approx(_exact_two_sided_p(finals[a], finals[b]))
-        raw.append(row.p)
-    order = np.argsort(raw)
-    holm, running = np.empty(3), 0.0
-    for k, i in enumerate(order):
-        running = max(running, min(1.0, (3 - k) * raw[i]))
-        holm[i] = running
-    np.testing.assert_allclose(pairs["p_holm"], holm)
+    # each seed drew its own instance (problem.seed unset): one run per configuration and instance, so nothing is
+    # compared within an instance, and the page says how to hold the instance instead of asking for more seeds
+    assert tables["seed_drew_instance"] and not len(tables["within"])
+    said = report.conclusions.sentences(tables)
+    first = " ".join(said["In short"])
+    assert "Each of the 3 seeds drew its own problem instance" in first and "problem.seed=N" in first
+    assert not any("more seeds are needed" in x for lines in said.values() for x in lines)
 
 
 def test_evaluations_to_target_and_area_under_curve_by_hand(sweep, tmp_path):
@@ -187,3 +168,44 @@ def test_nothing_to_report_is_one_clear_line(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []
 
 
+
+
+def test_the_page_says_how_the_runs_were_made_without_absolute_paths(sweep, tmp_path):
+    import re
+    import shlex
+
+    out = tmp_path / "report"
+    report.write_report([sweep], out, formats=("png",), latex=True)
+    text = (out / "index.html").read_text()
+    # the command, from the jobs' records: the swept keys as comma lists, the rest as every job had them
+    commands = [shlex.split(html_unescape(m)) for m in re.findall(r"<pre>(zrp-ga -m .*?)</pre>", text)]
+    assert len(commands) == 1
+    words = commands[0]
+    assert words[:2] == ["zrp-ga", "-m"]
+    assert f"crossover={','.join(CROSSOVERS)}" in words and "seed=0,1,2" in words and "population.generations=6" in words
+    sweep_dir = next(w for w in words if w.startswith("hydra.sweep.dir="))
+    assert not sweep_dir.split("=", 1)[1].startswith("/")  # relative to the folder it ran in
+    assert not re.search(r"""[\s>("'=]/(tmp|work|home|root|Users)/""", text)  # no absolute path of this machine
+    # settings held fixed and varied, from the runs' resolved configs
+    fixed = text[text.index("Settings held fixed"):text.index("The report</h3>")]
+    varied = text[text.index("Settings varied"):text.index("Settings held fixed")]
+    assert "<td>population.mu</td><td>10</td>" in fixed and "algorithm.population.mu" not in text  # one name for one setting
+    assert ">seed<" in varied and ">crossover.op._target_<" in varied
+    # the version, with its commit when installed from a clone (this test runs from one)
+    commit = subprocess.run(["git", "-C", str(Path(report.__file__).parents[2]), "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True).stdout.strip()  # fmt: skip
+    if commit:
+        assert f"zrp_ga 0.1.0 (commit {commit}" in text
+    # LaTeX: the configurations' table as booktabs, the numbers those of summary.csv
+    tex = (out / "summary.tex").read_text()
+    assert tex.count("\\toprule") == tex.count("\\midrule") == tex.count("\\bottomrule") == 1
+    summary = pd.read_csv(out / "summary.csv")
+    for row in summary.itertuples():
+        line = next(ln for ln in tex.splitlines() if ln.startswith(row.configuration.replace("_", "\\_") + " & "))
+        assert f"& {row.runs} & {row.final_over_ref_median:.4g} &" in line
+
+
+def html_unescape(s):
+    import html
+
+    return html.unescape(s)

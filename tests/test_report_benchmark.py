@@ -94,10 +94,24 @@ def test_absolute_target_replaces_the_levels(two_instances):
 
 
 def test_fixed_budget_by_hand(two_instances):
-    fb = _tables(two_instances, budgets=(15, 25, 1000))["fixed_budget"].set_index(["configuration", "instance", "budget"])
-    # A's GA runs within 15 evaluations: 3.0 and 2.0; within 25: 1.2 and 1.6; in the end 1.0 and 1.4 (f_ref 1.0)
-    assert [fb.loc[("GA", "A", b), "median_cost_over_ref"] for b in (15, 25, 1000)] == pytest.approx([2.5, 1.4, 1.2])
+    t = _tables(two_instances, budgets=(15, 25, 1000))
+    fb = t["fixed_budget"].set_index(["configuration", "instance", "budget"])
+    # A's GA runs within 15 evaluations: 3.0 and 2.0; within 25: 1.2 and 1.6 (f_ref 1.0)
+    assert [fb.loc[("GA", "A", b), "median_cost_over_ref"] for b in (15, 25)] == pytest.approx([2.5, 1.4])
     assert fb.loc[("GA", "B", 15), "median_cost_over_ref"] == pytest.approx(8.0 / 4.0)
+    # 1,000 evaluations: the runs stopped by their budget at 30 and 40: no number for a budget never run
+    assert math.isnan(fb.loc[("GA", "A", 1000), "median_cost_over_ref"])
+    assert math.isnan(t["fixed_budget_all"].set_index(["configuration", "budget"]).loc[("GA", 1000), "median_cost_over_ref"])
+
+
+def test_a_run_that_stopped_by_itself_keeps_its_final_cost_and_default_budgets_are_the_runs(tmp_path):
+    fake_run(tmp_path / "r1", "A", "ga", [(10, 3.0), (30, 1.0)], floor=1.0, stop_reason="stagnation")
+    fake_run(tmp_path / "r2", "A", "ga", [(10, 2.0), (250, 1.4)], floor=1.0, seed=2)
+    t = _tables(tmp_path)
+    assert t["budgets"] == (100, 250)  # the decades below the longest run, and the longest run
+    fb = t["fixed_budget"].set_index("budget")["median_cost_over_ref"]
+    # at 100: r1 converged (1.0, carried), r2 at 2.0; at 250 both: 1.0 and 1.4
+    assert fb.loc[100] == pytest.approx(1.5) and fb.loc[250] == pytest.approx(1.2)
 
 
 def test_trace_uses_the_initial_population_evaluation_by_evaluation(tmp_path):

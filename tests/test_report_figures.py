@@ -49,12 +49,12 @@ def test_fig2_draws_every_configuration_or_says_which(tmp_path):
     labels, _ = report.configurations(runs)
     chosen = drawing.median_runs(runs, labels, sorted(set(labels))[:3])
     with figures.style("paper"):
-        svg = figures.convergence_runs(chosen, 3, "I", 1e-9, True, tmp_path, ())
+        svg = figures.convergence_runs(chosen, 3, "I", 1e-9, True, tmp_path, (), page=True)
     assert "median run of all 3 configurations" in svg and "round-off floor" in svg  # short enough for one line
     assert not re.search(r">\s*\d+\.\d+\s*<", svg.split("generation")[0])  # generation ticks: integers only
     chosen = drawing.median_runs(runs, labels, sorted(set(labels)))[: figures.MAX_LINES]
     with figures.style("paper"):
-        svg = figures.convergence_runs(chosen, 10, "I", 1e-9, True, tmp_path, ())
+        svg = figures.convergence_runs(chosen, 10, "I", 1e-9, True, tmp_path, (), page=True)
     assert f"median run of the {figures.MAX_LINES} best of 10" in svg  # the legend's title, wrapped after it
 
 
@@ -81,7 +81,7 @@ def test_critical_difference_rows_stay_readable_at_48_configurations(tmp_path):
     scores = pd.DataFrame(rng.random((6, 48)) + np.arange(48) / 20, columns=names)
     result = report.stats.friedman(scores)
     with figures.style("paper"):
-        svg = figures.critical_difference(result, tmp_path, ("svg",))
+        svg = figures.critical_difference(result, tmp_path, ("svg",), page=True)
     assert all(f">{n}  (" in svg for n in names)  # every configuration named once, on its own row
     assert (tmp_path / "critical_difference.svg").exists()
 

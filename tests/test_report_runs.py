@@ -164,10 +164,10 @@ def test_malformed_runs_are_left_out_by_name_and_the_rest_reported(kinds, tmp_pa
     cases = _damaged(kinds, where)
     shutil.copytree(kinds / "paper-lm", where / "intact")
     t = report.write_report([where], tmp_path / "r", formats=())
-    assert list(t["runs"]["run"]) == [str(where / "intact")]
+    assert list(t["runs"]["run"]) == ["../runs/intact"]  # relative to the report
     reasons = dict(pd.read_csv(tmp_path / "r" / "left_out.csv").itertuples(index=False))
     for name, reason in cases.items():
-        assert reasons[str(where / name)].startswith(reason), (name, reasons[str(where / name)])
+        assert reasons[f"../runs/{name}"].startswith(reason), (name, reasons[f"../runs/{name}"])
 
 
 def test_bad_paths_are_one_line_errors_and_nothing_is_written(kinds, tmp_path, capsys):
@@ -223,3 +223,28 @@ def test_importing_the_report_leaves_the_backend_alone():
             "print(matplotlib.get_backend(), 'matplotlib.pyplot' in sys.modules)")  # fmt: skip
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert proc.stdout.split() == ["svg", "False"], proc.stderr
+
+
+def test_a_fifo_named_like_a_run_file_is_left_out_in_one_line_not_read(kinds, tmp_path):
+    """A FIFO would block the first read forever: the report names it and goes on (the command
+    runs in a process of its own with a time limit, so that a hang fails the test)."""
+    import os
+
+    where = tmp_path / "runs"
+    shutil.copytree(kinds / "paper-lm", where / "intact")
+    names = ["convergence.csv", "summary.json", "status.json", "initial_population.csv"]
+    for name in names:
+        shutil.copytree(kinds / "paper-ga", where / f"fifo-{name}")
+        (where / f"fifo-{name}" / name).unlink()
+        os.mkfifo(where / f"fifo-{name}" / name)
+    done = subprocess.run([sys.executable, "-m", "zrp_ga.cli.report", str(where), "--out", str(tmp_path / "r"), "--formats", "none"],
+                          capture_output=True, text=True, timeout=180)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    left = pd.read_csv(tmp_path / "r" / "left_out.csv").set_index("run")["reason"]
+    # initial_population.csv is not needed: that run counts, its first generation read from convergence.csv
+    assert sorted(left.index) == [f"../runs/fifo-{n}" for n in sorted(names[:3])]
+    assert len(pd.read_csv(tmp_path / "r" / "runs.csv")) == 2
+    for name in names[:3]:
+        reason = left[f"../runs/fifo-{name}"]
+        assert reason == f"{where / f'fifo-{name}' / name}: a FIFO (named pipe), not a regular file; expected a run's {name}"
+        assert f"left out {where / f'fifo-{name}'}: {reason}" in done.stdout

@@ -9,7 +9,7 @@ import pytest
 from scipy import stats as sps
 
 from zrp_ga.report import stats
-from zrp_ga.report.tables import factorial, within_instances
+from zrp_ga.report.compare import factorial, within_instances
 
 
 def test_friedman_with_seeds_as_blocks_known_answer():
@@ -103,7 +103,14 @@ def test_bootstrap_intervals_hold_the_estimate_and_narrow_with_more_data():
 
 
 def _runs_frame(rows):
-    return pd.DataFrame(rows, columns=["run", "configuration", "instance", "seed", "final_cost", "final_over_ref", "x", "y"])
+    df = pd.DataFrame(rows, columns=["run", "configuration", "instance", "seed", "final_cost", "final_over_ref", "x", "y"])
+    return df.assign(score=df["final_over_ref"])
+
+
+def _asked(df, tol=0.0):
+    """Every instance's question: the final cost (as ``score``), values within ``tol`` tied."""
+    return {i: dict(metric="final cost / f_ref", column="score", tol=tol, tied=False, at_floor=False, level=math.nan)
+            for i in df["instance"].unique()}  # fmt: skip
 
 
 def test_within_instances_pairs_by_seed_and_corrects_over_instances():
@@ -113,7 +120,8 @@ def test_within_instances_pairs_by_seed_and_corrects_over_instances():
             base = 10.0**seed  # seeds differ by decades: only a paired test sees the configurations' difference
             for c, shift in (("good", 0.0), ("bad", effect)):
                 rows.append((f"{inst}{c}{seed}", c, inst, seed, base + shift, base + shift, c, ""))
-    w = within_instances(_runs_frame(rows))
+    df = _runs_frame(rows)
+    w = within_instances(df, _asked(df))
     i1 = w[(w["instance"] == "I1") & (w["a"] != "all")].iloc[0]
     assert i1["test"] == "Wilcoxon signed-rank" and i1["p"] == pytest.approx(2 / 64)  # six of six: exact
     assert sps.mannwhitneyu(*[[r[4] for r in rows if r[2] == "I1" and r[1] == c] for c in ("good", "bad")]).pvalue > 0.5
@@ -132,7 +140,8 @@ def test_factorial_main_effects_paired_by_the_other_settings():
                 for x in ("x0", "x1"):
                     v = base * (1.5 if x == "x1" else 1.0)
                     rows.append((f"{inst}{seed}{x}{y}", f"{x} {y}", inst, seed, v, v, x, y))
-    tests, medians = factorial(_runs_frame(rows), ["x", "y"])
+    df = _runs_frame(rows)
+    tests, medians = factorial(df, ["x", "y"], _asked(df))
     x = tests[(tests["setting"] == "x") & (tests["a"] != "all")].set_index("instance")
     assert set(x["design"]) == {stats.PAIRED}
     assert x.loc["I1", "n_a"] == 10  # blocks: 5 seeds x 2 values of y
@@ -159,3 +168,83 @@ def test_nemenyi_pairwise_p_is_alpha_at_the_critical_difference():
     assert pairs[("a", "b")] == pytest.approx(expected_ab, rel=1e-9)
     assert pairs[("a", "b")] > 0.05 > pairs[("a", "c")]  # 1 rank < CD = 1.25 < 2 ranks
     assert pairs[("a", "d")] < pairs[("a", "c")] < pairs[("a", "b")]
+
+
+def test_signed_rank_equals_scipy_exact_permutation_and_normal():
+    rng = np.random.default_rng(7)
+    plain = rng.normal(0.3, 1.0, (20, 12))  # no ties, no zeros: scipy's exact test
+    w, p = stats.signed_rank(plain)
+    ref = sps.wilcoxon(plain, axis=-1, method="exact")
+    assert p == pytest.approx(ref.pvalue)
+    assert w == pytest.approx(np.where(plain > 0, sps.rankdata(np.abs(plain), axis=-1), 0).sum(axis=-1))  # W+ by hand
+    tied = rng.normal(0.3, 1.0, (6, 10)).round(1)  # ties and zeros: scipy's exact permutation test (2^10 sign patterns)
+    tied[0, :3] = 0.0
+    for row, pr in zip(tied, stats.signed_rank(tied)[1]):
+        assert pr == pytest.approx(sps.wilcoxon(row, method=sps.PermutationMethod()).pvalue)
+    for alternative in ("greater", "less"):
+        assert stats.signed_rank(tied, alternative)[1][1] == pytest.approx(
+            sps.wilcoxon(tied[1], alternative=alternative, method=sps.PermutationMethod()).pvalue)
+    big = rng.normal(0.1, 1.0, (3, 80))  # beyond 50 differences: the normal approximation
+    assert stats.signed_rank(big)[1] == pytest.approx(sps.wilcoxon(big, axis=-1, method="asymptotic").pvalue)
+    assert stats.signed_rank(np.zeros((1, 5)))[1][0] == 1.0  # nothing left: no evidence
+
+
+def test_ties_within_the_tolerance_and_the_verdicts():
+    # differences 0.004 on every one of 8 seeds: a difference with tol 0, the same result within tol 0.01
+    x = pd.Series(np.arange(8.0), index=range(8))
+    y = x + 0.004
+    strict = stats.compare_design({"a": x, "b": y}, tol=0.0)
+    assert strict["verdict"].iloc[0] == stats.BETTER and strict["p"].iloc[0] == pytest.approx(2 / 2**8)
+    loose = stats.compare_design({"a": x, "b": y}, tol=0.01)
+    assert loose["verdict"].iloc[0] == stats.EQUIVALENT and loose["test"].iloc[0] == stats.ALL_TIED
+    assert loose["effect"].iloc[0] == 0.5
+    # TOST: differences spread around 0 well inside +-1 on 12 seeds: equivalent as a finding, p from scipy's one-sided tests
+    rng = np.random.default_rng(2)
+    d = np.r_[rng.uniform(-0.3, 0.3, 12), 1.2, -1.1]  # two differences beyond the tolerance, the rest well inside
+    t = stats.compare_design({"a": pd.Series(np.zeros(14)), "b": pd.Series(d)}, tol=1.0)
+    up = sps.wilcoxon(d + 1.0, alternative="greater").pvalue
+    down = sps.wilcoxon(d - 1.0, alternative="less").pvalue
+    assert t["p_equivalence"].iloc[0] == pytest.approx(max(up, down)) and t["verdict"].iloc[0] == stats.EQUIVALENT
+    assert t["test"].iloc[0] == "Wilcoxon signed-rank"  # not every run within the tolerance: the test decided
+    few = stats.compare_design({"a": pd.Series(np.zeros(3)), "b": pd.Series(d[:3])}, tol=1.0)
+    assert few["verdict"].iloc[0] == stats.EQUIVALENT  # three differences, all within 1: equivalent on their face
+    wide = stats.compare_design({"a": pd.Series(np.zeros(3)), "b": pd.Series([0.5, -2.0, 3.0])}, tol=1.0)
+    assert wide["verdict"].iloc[0] == stats.UNDECIDED  # 3 seeds can neither separate nor join them
+
+
+def test_interaction_f_equals_a_two_way_anova_on_the_aligned_ranks_by_least_squares():
+    rng = np.random.default_rng(4)
+    a = np.repeat(["a0", "a1", "a2"], 16)
+    b = np.tile(np.repeat(["b0", "b1"], 8), 3)
+    crossing = np.where((a == "a2") == (b == "b1"), 1.0, 0.0)  # a2 best with b0, worst with b1
+    y = crossing + rng.normal(0, 0.3, len(a))
+    f, p = stats.interaction(y, a, b)
+    # independently: align for the interaction, rank, then the interaction's F from the residual sums of squares of
+    # the additive and the full (cell means) linear models, by numpy's least squares
+    df = pd.DataFrame({"y": y, "a": a, "b": b})
+    cell = df.groupby(["a", "b"])["y"].transform("mean")
+    r = sps.rankdata((df["y"] - cell) + (cell - df.groupby("a")["y"].transform("mean") - df.groupby("b")["y"].transform("mean")
+                                         + df["y"].mean()))  # fmt: skip
+    additive = pd.get_dummies(df[["a", "b"]], drop_first=True).astype(float).assign(one=1.0).to_numpy()
+    full = pd.get_dummies(df["a"] + df["b"]).astype(float).to_numpy()
+    rss = [np.sum((r - m @ np.linalg.lstsq(m, r, rcond=None)[0]) ** 2) for m in (additive, full)]
+    f_ref = ((rss[0] - rss[1]) / 2) / (rss[1] / (len(r) - 6))
+    assert f == pytest.approx(f_ref) and p == pytest.approx(sps.f.sf(f_ref, 2, len(r) - 6)) and p < 0.001
+    parallel = np.where(a == "a2", 1.0, 0.0) + np.where(b == "b1", 0.5, 0.0) + rng.normal(0, 0.3, len(a))
+    assert stats.interaction(parallel, a, b)[1] > 0.01
+
+
+def test_the_effect_interval_of_many_runs_stays_in_bounded_memory():
+    """A12's bootstrap on 20,000 runs a side: as pairs it would hold 20,000 x 20,000 numbers per
+    resample (3.2 GB); from ranks, in batches, it stays below 100 MB."""
+    import tracemalloc
+
+    rng = np.random.default_rng(0)
+    x, y = rng.normal(0, 1, 20_000), rng.normal(0.1, 1, 20_000)
+    tracemalloc.start()
+    lo, hi = stats.effect_ci(x, y, paired=False, resamples=100)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    a12 = stats.a12(x, y)
+    assert lo < a12 < hi and hi - lo < 0.03 and peak < 100e6
+    assert a12 == pytest.approx(1 - sps.mannwhitneyu(x, y).statistic / 20_000**2)

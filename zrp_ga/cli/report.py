@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 
-from zrp_ga.report.common import BUDGETS, LEVELS, ROUND_OFF, ReportError
+from zrp_ga.report.common import LEVELS, ROUND_OFF, ReportError
 from zrp_ga.report.write import FORMATS, console, write_report
 
 
@@ -38,13 +38,18 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--target", type=float, default=None, help="one absolute target cost for every instance instead of the levels")
     p.add_argument("--round-off", type=float, default=ROUND_OFF, metavar="EPS",
                    help="a floor below EPS x nominal cost is round-off: f_ref = EPS x nominal cost (default 1e-9)")
-    p.add_argument("--budgets", type=_numbers(int), default=BUDGETS, metavar="N,...",
-                   help="fixed budgets in evaluations (default 100,1000,10000)")
+    p.add_argument("--budgets", type=_numbers(int), default=None, metavar="N,...",
+                   help="fixed budgets in evaluations (default: 100, 1000, ... up to the runs' largest, and that)")
+    p.add_argument("--tolerance", type=float, default=None, metavar="REL",
+                   help="final costs closer than REL x f_ref are the same result (default: the targets' resolution, the tightest "
+                        "level - 1: 0.01; never below the round-off floor)")
+    p.add_argument("--latex", action="store_true", help="also write the headline tables as booktabs .tex files")
     p.add_argument("--only", action="append", default=[], metavar="KEY=VALUE",
                    help="keep only the runs given this setting (repeatable), e.g. --only refine=none")
-    p.add_argument("--formats", default=",".join(FORMATS), help="figure formats (default png,pdf,svg; none: no figures)")
+    p.add_argument("--formats", default=",".join(FORMATS), help="figure formats of the files (default png,pdf; svg too if wanted; none: no figures)")
     p.add_argument("--style", default="paper", choices=("paper", "screen"),
-                   help="figures for a paper's column (3.5 in, 8-9 pt; the default) or for a screen (7 in, 10 pt)")
+                   help="figure files for a paper (3.5 in a column, 7.16 in a page, 8-9 pt; the default) or for a screen "
+                        "(7 in, 10 pt); the page always shows screen-sized figures")
     args = p.parse_args(argv)
     import shlex
     import sys
@@ -52,11 +57,11 @@ def main(argv: list[str] | None = None) -> None:
     command = shlex.join(["zrp-ga-report", *(sys.argv[1:] if argv is None else argv)])
     try:
         t = write_report(args.dirs, args.out, args.target, args.only, args.levels, args.budgets, args.round_off, args.ioh,
-                         tuple(f for f in args.formats.split(",") if f and f != "none"), args.style, command)  # fmt: skip
+                         tuple(f for f in args.formats.split(",") if f and f != "none"), args.style, command, args.tolerance,
+                         args.latex)  # fmt: skip
     except ReportError as exc:
         p.exit(2, f"zrp-ga-report: error: {exc}\n")
     print(console(t))
-
 
 
 if __name__ == "__main__":

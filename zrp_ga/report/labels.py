@@ -15,6 +15,7 @@ configurations that the kept ones do not. An option's name is Hydra's choice (``
 
 from __future__ import annotations
 
+from collections import Counter
 from typing import Any
 
 from zrp_ga.report.runs import Run
@@ -108,3 +109,41 @@ def configurations(runs: list[Run]) -> tuple[list[str], dict[str, dict[str, str]
         shown[i] = (", ".join(words) or describe("algorithm", p["algorithm"]), {k: p[k] for k in kept if k in p})
     labels = [shown[i][0] for i in ids]
     return labels, {label: keys for label, keys in shown.values()}
+
+
+_WORD = {"polynomial": "poly", "gaussian": "Gauss", "uniform_reset": "reset", "two_point": "2-point", "one_point": "1-point",
+         "sbx": "SBX", "cmaes": "CMA-ES", "ga": "GA", "lm": "LM"}  # fmt: skip
+_KEY = {"inversion": "inv", "rotation": "rot", "selection": "sel"}
+
+
+def short(settings_: dict[str, str]) -> str:
+    """A configuration's label for a figure, a few words: the operators' short names (``poly``,
+    ``2-point``), ``inv``/``rot`` for segment inversion and rotation (``no inv``: none), the
+    algorithm, ``step``/``no step`` for the pseudo-inverse step, single settings with their short key.
+
+    >>> short({"crossover": "blend", "mutation": "uniform_reset", "inversion": "none", "rotation": "segment"})
+    'blend, reset, no inv, rot'
+    >>> short({"algorithm": "lm"}), short({"population.mu": "50", "refine": "none"})
+    ('LM', 'mu 50, no step')
+    """
+    words = []
+    for key, value in settings_.items():
+        if key == "refine":
+            words.append("step" if value != "none" else "no step")
+        elif key in _KEY:
+            words.append(f"no {_KEY[key]}" if value == "none" else _KEY[key] if value == "segment" else f"{_WORD.get(value, value)} {_KEY[key]}")
+        elif key in _FAMILIES or key == "algorithm":
+            words.append(f"no {key}" if value == "none" else _WORD.get(value, value.replace("_", " ")))
+        else:
+            words.append(f"{_SHORT.get(key, key.rsplit('.', 1)[-1])} {value}")
+    return ", ".join(words)
+
+
+KEY_NOTE = "poly: polynomial, Gauss: Gaussian, reset: uniform reset mutation; inv, rot: segment inversion, rotation"
+
+
+def short_labels(shown: dict[str, dict[str, str]]) -> dict[str, str]:
+    """:func:`short` of every configuration, the long label where two would read the same."""
+    out = {label: short(s) or label for label, s in shown.items()}
+    counts = Counter(out.values())
+    return {label: (s if counts[s] == 1 else label) for label, s in out.items()}

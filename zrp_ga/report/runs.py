@@ -22,8 +22,12 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from zrp_ga.core.files import regular_file
 from zrp_ga.report.common import ReportError
 from zrp_ga.run.directory import CONVERGENCE, INITIAL_POPULATION, MANIFEST, STATUS, SUMMARY
+
+MAX_BYTES = {SUMMARY: 64 << 20, CONVERGENCE: 256 << 20, STATUS: 1 << 20, INITIAL_POPULATION: 256 << 20,
+             MANIFEST: 1 << 30, "overrides.yaml": 1 << 20, "hydra.yaml": 16 << 20, "best_params.csv": 64 << 20}  # a file larger than this is not a run's (bounded memory)
 
 Array = np.ndarray
 IGNORED_KEYS = ("hydra", "experiment", "progress", "checkpoint_every")
@@ -39,14 +43,23 @@ class Run:
     """A finished run as its files tell it.
 
     ``evals``/``best``: the run's trace, (T,) evaluation counts (increasing, >= 1) and the
-    best cost seen by then (non-increasing; see :func:`trace`)."""
+    best cost seen by then (non-increasing; see :func:`trace`). ``columns``: convergence.csv's
+    columns as arrays (``convergence``, the same as a DataFrame); ``tokens``: the Hydra overrides
+    as given (``overrides`` without Hydra's own and bookkeeping keys); ``sweep``: the sweep
+    directory of a job of one."""
 
     path: Path
     overrides: dict[str, str]
     summary: dict[str, Any]
-    convergence: pd.DataFrame
+    columns: dict[str, Array]
     evals: Array
     best: Array
+    tokens: tuple[str, ...] = ()
+    sweep: Path | None = None
+
+    @property
+    def convergence(self) -> pd.DataFrame:
+        return pd.DataFrame(self.columns)
 
     @property
     def instance(self) -> str:
@@ -86,24 +99,43 @@ def parse_overrides(items: list[str] | str) -> dict[str, str]:
     return out
 
 
-def _hydra_overrides(path: Path) -> dict[str, str]:
-    """The overrides Hydra saved for a single run (none when absent or unreadable: they only name settings)."""
+def read_text(path: Path, name: str | None = None, errors: str = "strict") -> str:
+    """A run's file as text, checked first to be a regular file of at most ``MAX_BYTES`` (a FIFO
+    named like a run file would block the read forever, ``/dev/zero`` would fill the memory);
+    LeftOut says what it is instead."""
+    name = name or path.name
     try:
-        items = yaml.safe_load((path / ".hydra" / "overrides.yaml").read_text())
-    except (OSError, yaml.YAMLError):
-        return {}
-    return parse_overrides(items) if isinstance(items, list) else {}
+        regular_file(path, f"a run's {name}")
+        size = path.stat().st_size
+    except ValueError as exc:
+        raise LeftOut(str(exc)) from None
+    if size > MAX_BYTES.get(name, 1 << 30):
+        raise LeftOut(f"{path}: {size:,} bytes, larger than a run's {name} can be ({MAX_BYTES[name]:,})")
+    try:
+        return path.read_text(errors=errors)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise LeftOut(f"{name} cannot be read ({exc})") from None
+
+
+def _hydra_overrides(path: Path) -> list[str]:
+    """The overrides Hydra saved for a single run, as given (none when absent or unreadable: they only name settings)."""
+    try:
+        items = yaml.load(read_text(path / ".hydra" / "overrides.yaml", "overrides.yaml"), Loader=_LOADER)
+    except (LeftOut, yaml.YAMLError):
+        return []
+    return [str(t) for t in items] if isinstance(items, list) else []
+
+
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 # --- one run ---------------------------------------------------------------------------------------
 def read_summary(path: Path) -> dict[str, Any]:
     """``summary.json`` checked for the fields the report uses; LeftOut says what is wrong."""
     try:
-        summary = json.loads((path / SUMMARY).read_text())
+        summary = json.loads(read_text(path / SUMMARY))
     except json.JSONDecodeError as exc:
         raise LeftOut(f"summary.json is not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise LeftOut(f"summary.json cannot be read ({exc})") from None
     if not isinstance(summary, dict):
         raise LeftOut("summary.json does not hold an object")
     checks = {
@@ -122,15 +154,13 @@ def read_summary(path: Path) -> dict[str, Any]:
     return summary
 
 
-def read_convergence(path: Path) -> pd.DataFrame:
-    """``convergence.csv`` checked whole: every line complete, the needed columns numbers,
-    evaluations finite and non-decreasing, costs >= 0 or +inf (a diverged run: it reaches no
-    target). A cost of -inf (it would reach every target), a negative one or NaN is no cost: the
-    run is left out, named, not read around. LeftOut names the first line that is not."""
-    try:
-        text = (path / CONVERGENCE).read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise LeftOut(f"convergence.csv cannot be read ({exc})") from None
+def read_convergence(path: Path) -> dict[str, Array]:
+    """``convergence.csv`` checked whole, as {column: (T,) array}: every line complete, the
+    needed columns numbers, evaluations finite and non-decreasing, costs >= 0 or +inf (a
+    diverged run: it reaches no target). A cost of -inf (it would reach every target), a
+    negative one or NaN is no cost: the run is left out, named, not read around. LeftOut names
+    the first line that is not. Other columns: numbers, NaN where a field is not one."""
+    text = read_text(path / CONVERGENCE)
     rows = list(csv.reader(io.StringIO(text)))
     if not rows:
         raise LeftOut("convergence.csv is empty")
@@ -145,36 +175,39 @@ def read_convergence(path: Path) -> pd.DataFrame:
             raise LeftOut(f"convergence.csv line {line} is truncated ({len(row)} of {len(header)} fields)")
     if not text.endswith("\n"):
         raise LeftOut(f"convergence.csv line {len(rows)} is truncated (no line end)")
-    conv = pd.read_csv(io.StringIO(text))
+    try:
+        table = np.array(rows[1:], dtype=float)  # every field a number: the usual case, at once
+        columns = {c: table[:, k] for k, c in enumerate(header)}
+    except ValueError:
+        columns = {c: pd.to_numeric(pd.Series([r[k] for r in rows[1:]]), errors="coerce").to_numpy(dtype=float)
+                   for k, c in enumerate(header)}  # fmt: skip
     for column in NEEDED_COLUMNS:
-        k = header.index(column)
-        values = np.empty(len(rows) - 1)
-        for line, row in enumerate(rows[1:], start=2):
-            try:
-                values[line - 2] = float(row[k])  # float() reads 'inf' and 'nan', which a diverged run writes
-            except ValueError:
-                raise LeftOut(f"convergence.csv line {line}: {column} is {row[k]!r}") from None
-            value = values[line - 2]
-            if (column != "best" and not math.isfinite(value)) or math.isnan(value) or value < 0:
-                what = "not a finite number" if column != "best" else "not a cost (a cost is >= 0, or inf when diverged)"
-                raise LeftOut(f"convergence.csv line {line}: {column} is {row[k]!r}, {what}")
-        conv[column] = values
-    if (np.diff(conv["nevals"].to_numpy()) < 0).any():
-        line = int(np.argmax(np.diff(conv["nevals"].to_numpy()) < 0)) + 3
+        values = columns[column]
+        bad = np.isnan(values) | (values < 0) | (np.isinf(values) if column != "best" else False)
+        if bad.any():
+            line = int(np.argmax(bad))
+            raw = rows[line + 1][header.index(column)]
+            what = "not a finite number" if column != "best" else "not a cost (a cost is >= 0, or inf when diverged)"
+            raise LeftOut(f"convergence.csv line {line + 2}: {column} is {raw!r}, {what}")
+    if (np.diff(columns["nevals"]) < 0).any():
+        line = int(np.argmax(np.diff(columns["nevals"]) < 0)) + 3
         raise LeftOut(f"convergence.csv line {line}: evaluations go down")
-    return conv
+    return columns
 
 
 def _initial_costs(path: Path) -> Array | None:
-    """The initial population's costs in evaluation order, or None when unreadable."""
+    """The initial population's costs in evaluation order, or None when unreadable (the last
+    column, ``cost``, of each line: read without parsing the genes)."""
     try:
-        costs = pd.read_csv(path / INITIAL_POPULATION, usecols=["cost"])["cost"]
-        return pd.to_numeric(costs, errors="raise").to_numpy(dtype=float)
-    except (OSError, ValueError, KeyError, pd.errors.ParserError):
+        lines = read_text(path / INITIAL_POPULATION).splitlines()
+        if not lines or lines[0].rsplit(",", 1)[-1].strip() != "cost":
+            return None
+        return np.array([ln.rsplit(",", 1)[-1] for ln in lines[1:] if ln], dtype=float)
+    except (LeftOut, ValueError):
         return None
 
 
-def trace(conv: pd.DataFrame, initial_costs: Array | None = None) -> tuple[Array, Array]:
+def trace(conv: dict[str, Array] | pd.DataFrame, initial_costs: Array | None = None) -> tuple[Array, Array]:
     """The run's best-so-far cost by evaluation count: (T,) evaluations (increasing, >= 1)
     and (T,) best cost seen within that many evaluations (non-finite costs count as +inf).
 
@@ -184,13 +217,14 @@ def trace(conv: pd.DataFrame, initial_costs: Array | None = None) -> tuple[Array
     evaluations one by one. A row at 0 evaluations (Levenberg-Marquardt's starting point)
     counts as evaluation 1.
 
-    >>> conv = pd.DataFrame({"nevals": [3, 6, 9], "best": [5.0, 4.0, 4.5]})
+    >>> conv = {"nevals": np.array([3, 6, 9]), "best": np.array([5.0, 4.0, 4.5])}
     >>> e, b = trace(conv, np.array([7.0, 5.0, 6.0]))
     >>> e.tolist(), b.tolist()
     ([1, 2, 3, 6, 9], [7.0, 5.0, 5.0, 4.0, 4.0])
     """
-    e = np.maximum(conv["nevals"].to_numpy(dtype=float), 1.0).astype(np.int64)
-    c = np.where(np.isnan(conv["best"].to_numpy(dtype=float)), np.inf, conv["best"].to_numpy(dtype=float))
+    e = np.maximum(np.asarray(conv["nevals"], dtype=float), 1.0).astype(np.int64)
+    c = np.asarray(conv["best"], dtype=float)
+    c = np.where(np.isnan(c), np.inf, c)
     if initial_costs is not None and len(initial_costs) == e[0] and len(initial_costs):
         first = np.where(np.isnan(initial_costs), np.inf, initial_costs)
         if np.isclose(first.min(), c[0], rtol=1e-12, atol=0.0) or first.min() == c[0]:
@@ -201,8 +235,9 @@ def trace(conv: pd.DataFrame, initial_costs: Array | None = None) -> tuple[Array
     return e[last], best[last]
 
 
-def load_run(path: Path, overrides: dict[str, str]) -> Run:
-    """The finished run in ``path``; LeftOut says why it does not count."""
+def load_run(path: Path, tokens: list[str], sweep: Path | None = None) -> Run:
+    """The finished run in ``path`` (``tokens``: its Hydra overrides as given); LeftOut says why
+    it does not count."""
     status = _status(path)
     if not (path / SUMMARY).exists():
         raise LeftOut(_unfinished(status, path))
@@ -212,17 +247,19 @@ def load_run(path: Path, overrides: dict[str, str]) -> Run:
     if not (path / CONVERGENCE).exists():
         raise LeftOut("no convergence.csv")
     conv = read_convergence(path)
-    last = int(conv["nevals"].iloc[-1])
+    last = int(conv["nevals"][-1])
     if last != summary["nevals"]:
         raise LeftOut(f"convergence.csv ends at {last} evaluations, summary.json says {summary['nevals']} (truncated?)")
     evals, best = trace(conv, _initial_costs(path))
-    return Run(path, overrides, summary, conv, evals, best)
+    return Run(path, parse_overrides(tokens), summary, conv, evals, best, tuple(tokens), sweep)
 
 
 def _status(path: Path) -> dict | None:
+    if not (path / STATUS).exists():
+        return None
     try:
-        status = json.loads((path / STATUS).read_text())
-    except (OSError, ValueError):
+        status = json.loads(read_text(path / STATUS))
+    except ValueError:
         return None
     return status if isinstance(status, dict) else None
 
@@ -248,7 +285,11 @@ def read_manifest(sweep: Path) -> tuple[list[dict], list[tuple[str, str]]]:
     """The last state of each job in ``manifest.jsonl`` and the lines that cannot be read
     (a sweep killed while writing may leave half a line)."""
     jobs, bad = {}, []
-    for n, line in enumerate((sweep / MANIFEST).read_text(errors="replace").splitlines(), start=1):
+    try:
+        text = read_text(sweep / MANIFEST, errors="replace")
+    except LeftOut as why:
+        return [], [(str(sweep / MANIFEST), str(why))]
+    for n, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
         try:
@@ -265,9 +306,9 @@ def _job(sweep: Path, job: dict) -> Run:
     path = sweep / str(job["dir"])
     if not path.is_dir():
         raise LeftOut(f"no run directory ({job.get('status')} in the manifest)")
-    overrides = parse_overrides(job.get("overrides") or "")
+    tokens = str(job.get("overrides") or "").split()
     if job.get("status") == "done":
-        return load_run(path, overrides)
+        return load_run(path, tokens, sweep)
     if job.get("status") == "failed":
         raise LeftOut(f"failed: {job.get('error')}" if job.get("error") else "failed")
     raise LeftOut(_unfinished(_status(path), path, str(job.get("status"))))
@@ -300,7 +341,7 @@ def find_runs(paths: list[str | Path]) -> tuple[list[Run], list[tuple[str, str]]
         if path in seen:
             return
         seen.add(path)
-        if (path / MANIFEST).is_file():
+        if (path / MANIFEST).exists():
             jobs, bad = read_manifest(path)
             left.extend(bad)
             for job in jobs:

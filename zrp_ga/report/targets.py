@@ -17,11 +17,20 @@ from zrp_ga.report.runs import Run, number
 @dataclasses.dataclass(frozen=True)
 class TargetRule:
     """How targets are set: ``levels`` c (target c x f_ref per instance) or one ``absolute``
-    cost for every instance; ``round_off``: a floor below round_off x nominal cost is round-off."""
+    cost for every instance; ``round_off``: a floor below round_off x nominal cost is round-off;
+    ``tolerance``: final costs closer than ``tolerance`` x f_ref are the same result (default:
+    the targets' resolution, the tightest level - 1: 0.01 with the default levels)."""
 
     levels: tuple[float, ...] = LEVELS
     absolute: float | None = None
     round_off: float = ROUND_OFF
+    tolerance: float | None = None
+
+    def resolution(self) -> float:
+        """The tolerance, relative to f_ref."""
+        if self.tolerance is not None:
+            return float(self.tolerance)
+        return float(min(self.levels) - 1.0) if self.levels and min(self.levels) > 1.0 else 0.01
 
     def names(self) -> list[str]:
         return [f"cost<={self.absolute:g}"] if self.absolute is not None else [f"{c:g}" for c in self.levels]
@@ -38,9 +47,11 @@ def floors(runs: list[Run], rule: TargetRule) -> pd.DataFrame:
     comes from, whether it is at round-off level, the reference f_ref the targets scale and the
     targets, one column ``target_<level>`` per level.
 
-    f* is summary.json's ``floor`` when the runs carry one (the lowest if they differ), else
-    the lowest final cost among the runs (best known). f_ref = f*, except where f* <
-    round_off x nominal cost: there f_ref = round_off x nominal cost.
+    f* is summary.json's ``floor`` when the runs carry one (the lowest if they differ; then
+    ``by_lm`` is True), else the lowest final cost among the runs (best known: the best run is at
+    1 x f* by definition). f_ref = f*, except where f* < round_off x nominal cost: there f_ref =
+    round_off x nominal cost. ``tolerance``: final costs closer than ``tolerance`` x f_ref are one
+    result, the rule's resolution and at least the round-off floor (round_off x nominal cost).
     """
     rows = []
     for instance, group in _by_instance(runs).items():
@@ -57,8 +68,9 @@ def floors(runs: list[Run], rule: TargetRule) -> pd.DataFrame:
             floor, source = math.nan, "none: no run has a finite final cost"
         exact = bool(math.isfinite(floor) and math.isfinite(nominal) and nominal > 0 and floor < rule.round_off * nominal)
         reference = rule.round_off * nominal if exact else floor
+        off = rule.round_off * nominal / reference if math.isfinite(nominal) and reference > 0 else 0.0
         row = dict(instance=instance, runs=len(group), nominal_cost=nominal, floor=floor, floor_source=source,
-                   round_off=exact, reference=reference)  # fmt: skip
+                   round_off=exact, reference=reference, by_lm=bool(given), tolerance=max(rule.resolution(), off))  # fmt: skip
         if rule.absolute is not None:
             row[f"target_{rule.names()[0]}"] = rule.absolute
         else:
@@ -151,20 +163,39 @@ def best_at(evals: np.ndarray, best: np.ndarray, budget: float) -> float:
     return float(best[i]) if i >= 0 else math.nan
 
 
+BUDGET_STOPS = ("generations", "max_evals", "maxfevals", "samples", "maximum number of function evaluations", "maxiter")
+
+
+def stopped_by_budget(run: Run) -> bool:
+    """Whether the run stopped because its budget ran out (generations, evaluations) rather than
+    by itself (converged): then its best beyond its evaluations is unknown. Unknown: budget."""
+    reason = str(run.summary.get("stop_reason") or "").lower()
+    return not reason or any(s in reason for s in BUDGET_STOPS)
+
+
+def default_budgets(runs: list[Run]) -> tuple[int, ...]:
+    """Budgets the runs made: 100, 1,000, ... up to the most evaluations a run made, and that count."""
+    top = max((r.nevals for r in runs), default=0)
+    decades = [10**k for k in range(2, 12) if 10**k < top]
+    return tuple(decades + [top]) if top > 0 else ()
+
+
 def fixed_budget(runs: list[Run], labels: list[str], table: pd.DataFrame, budgets: tuple[int, ...]) -> pd.DataFrame:
     """Per configuration, instance and budget: the runs and the median over them of (best cost
-    within the budget) / f_ref."""
+    within the budget) / f_ref; NaN (no number) where a run stopped by its own budget before
+    it (a run that stopped by itself, converged, keeps its final best)."""
     reference = table.set_index("instance")["reference"]
     rows = []
     for r, label in zip(runs, labels):
         ref = float(reference.loc[r.instance])
+        cut = stopped_by_budget(r)
         for b in budgets:
-            value = best_at(r.evals, r.best, b)
-            rows.append(dict(configuration=label, instance=r.instance, budget=b,
-                             ratio=value / ref if ref > 0 else math.nan))  # fmt: skip
+            value = best_at(r.evals, r.best, b) if (b <= r.nevals or not cut) else math.nan
+            rows.append(dict(configuration=label, instance=r.instance, budget=b, ratio=value / ref if ref > 0 else math.nan))
     df = pd.DataFrame(rows, columns=["configuration", "instance", "budget", "ratio"])
     return (df.groupby(["configuration", "instance", "budget"], sort=False)["ratio"]
-              .agg(runs="size", median_cost_over_ref="median").reset_index())  # fmt: skip
+              .agg(runs="size", median_cost_over_ref=lambda v: float(v.median()) if v.notna().all() else math.nan)
+              .reset_index())  # fmt: skip
 
 
 ECDF_TARGETS = 51  # as many as COCO's (five per decade over ten decades there)
@@ -197,12 +228,15 @@ def runtime_hits(runs: list[Run], labels: list[str], targets_: dict[str, np.ndar
     """One row per (run, ECDF target): as :func:`hits` (``level`` the target's number k) with
     ``hit`` and ``nevals`` divided by the run's genome length (evaluations per gene, as COCO
     divides by the dimension; by 1 when the length is unknown)."""
-    rows = []
+    parts = []
     for r, label in zip(runs, labels):
         if r.instance not in targets_:
             continue
         dim = max(dimension(r), 1)
-        for k, target in enumerate(targets_[r.instance]):
-            rows.append((str(r.path), label, r.instance, f"t{k:02d}", float(target), first_hit(r.evals, r.best, target) / dim,
-                         r.nevals / dim))  # fmt: skip
-    return pd.DataFrame(rows, columns=["run", "configuration", "instance", "level", "target", "hit", "nevals"])
+        tg = targets_[r.instance]
+        at = np.searchsorted(-r.best, -tg, side="left")  # the first index where best <= target (best non-increasing)
+        hit = np.where(at < len(r.best), r.evals[np.minimum(at, len(r.evals) - 1)], np.inf) / dim
+        parts.append(pd.DataFrame({"run": str(r.path), "configuration": label, "instance": r.instance,
+                                   "level": [f"t{k:02d}" for k in range(len(tg))], "target": tg, "hit": hit, "nevals": r.nevals / dim}))
+    columns = ["run", "configuration", "instance", "level", "target", "hit", "nevals"]
+    return pd.concat(parts, ignore_index=True)[columns] if parts else pd.DataFrame(columns=columns)

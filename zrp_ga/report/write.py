@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from zrp_ga.report.common import BUDGETS, LEVELS, ROUND_OFF, ReportError, markdown
+from zrp_ga.report.common import LEVELS, ROUND_OFF, ReportError, markdown
 from zrp_ga.run import directory
 
 if TYPE_CHECKING:
@@ -29,8 +29,9 @@ if TYPE_CHECKING:
 STEMS = ("targets", "summary", "per_instance", "ert", "ecdf", "fixed_budget", "ranks", "statistics", "factors", "runs",
          "tidy", "left_out", "fig2_convergence", "convergence_by_configuration", "ecdf_evals_to_target",
          "validation_error_boxplot", "critical_difference", "table2_initial_population", "table3_best_params",
-         "ranks_nemenyi", "index", "ecdf_by_instance", "within_instances", "factors_by_instance", "ecdf_targets")  # fmt: skip
-FORMATS = ("png", "pdf", "svg")
+         "ranks_nemenyi", "index", "ecdf_by_instance", "within_instances", "factors_by_instance", "ecdf_targets", "conclusions",
+         "reference", "interactions", "main_effects", "evaluations_boxplot")  # fmt: skip
+FORMATS = ("png", "pdf")  # the page holds the figures as SVG itself
 IOH = "ioh"
 
 
@@ -102,9 +103,9 @@ def _publish(stage: Path, out: Path, ioh: Path) -> None:
 def _write_tables(t: dict, stage: Path) -> None:
     names = {"targets": "floors", "within_instances": "within"}
     for name in ("targets", "summary", "per_instance", "ert", "ecdf", "fixed_budget", "statistics", "factors", "runs", "tidy",
-                 "within_instances"):  # fmt: skip
+                 "within_instances", "reference", "interactions"):  # fmt: skip
         t[names.get(name, name)].to_csv(stage / f"{name}.csv", index=False)
-    for name in ("targets", "summary", "per_instance", "statistics"):
+    for name in ("targets", "summary", "per_instance", "statistics", "reference"):
         df = t[names.get(name, name)]
         if len(df):
             (stage / f"{name}.md").write_text(markdown(df))
@@ -112,8 +113,10 @@ def _write_tables(t: dict, stage: Path) -> None:
     if len(w):
         keep = (w["a"] == "all") | (w["a"] == w["best"]) | (w["b"] == w["best"])
         (stage / "within_instances.md").write_text(
-            "Within each instance, on the final cost: the omnibus test (Holm over the instances) and the best configuration "
-            "against each other (Holm over the instance's pairs); effect = P(a ends lower than b) [95% bootstrap CI]\n\n"
+            "Within each instance, on its question (final cost / f_ref, ties within the tolerance; or the evaluations where "
+            "every run ties): the omnibus test (Holm over the instances) and the best configuration against each other (Holm "
+            "over the instance's pairs, TOST for equivalence); effect = P(a ends lower than b) [95% bootstrap CI]; one verdict "
+            "per pair, from a's side\n\n"
             + markdown(w[keep]))  # fmt: skip
     f, med = t["factors"], t["factor_medians"]
     if len(f):
@@ -129,8 +132,16 @@ def _write_tables(t: dict, stage: Path) -> None:
     wide = t["fixed_budget_all"].pivot(index="configuration", columns="budget", values="median_cost_over_ref").reindex(order)
     wide.columns = [f"at {b:,} evaluations" for b in wide.columns]
     (stage / "fixed_budget.md").write_text(
-        "Median over instances of the median over runs of (best cost within the budget) / f_ref\n\n"
-        + markdown(wide.reset_index()))  # fmt: skip
+        "Median over instances of the median over runs of (best cost within the budget) / f_ref; nan where a run stopped by "
+        "its own budget before it\n\n" + markdown(wide.reset_index()))  # fmt: skip
+    import json
+
+    from zrp_ga.report import conclusions
+
+    found = conclusions.records(t)
+    lines = ",\n".join(json.dumps(c, separators=(",", ":")) for c in found["conclusions"])
+    head = json.dumps({k: v for k, v in found.items() if k not in ("conclusions", "tests")})[:-1]
+    (stage / "conclusions.json").write_text(f'{head}, "tests": {json.dumps(found["tests"])},\n"conclusions": [\n{lines}\n]}}\n')
     ert = t["ert"][t["ert"]["instance"] == "all"].pivot(index="configuration", columns="level", values="ert")
     ert = ert.reindex(index=[c for c in order if c in ert.index], columns=t["rule"].names())
     (stage / "ert.md").write_text("ERT (evaluations) per target level, pooled over instances\n\n" + markdown(ert.reset_index()))
@@ -153,29 +164,39 @@ def _friedman_line(t: dict) -> str:
 
 
 def _paper_tables(run: Run, stage: Path) -> list[str]:
-    """Tables 2 and 3 of one run; the files that could not be read."""
+    """Tables 2 and 3 of one run; the files that could not be read (a FIFO or device among them:
+    checked to be regular files first)."""
+    import io
+
     import pandas as pd
+
+    from zrp_ga.report.runs import LeftOut, read_text
 
     missing = []
     for name, source in (("table2_initial_population", directory.INITIAL_POPULATION), ("table3_best_params", directory.BEST_PARAMS)):
         try:
-            (stage / f"{name}.md").write_text(markdown(pd.read_csv(run.path / source)))
-        except (OSError, ValueError, pd.errors.ParserError):
+            (stage / f"{name}.md").write_text(markdown(pd.read_csv(io.StringIO(read_text(run.path / source)))))
+        except (OSError, ValueError, LeftOut, pd.errors.ParserError):
             missing.append(str(run.path / source))
     return missing
 
 
 def write_report(paths: list[str | Path], out: str | Path | None = None, target: float | None = None, only: list[str] = (),
-                 levels: tuple[float, ...] = LEVELS, budgets: tuple[int, ...] = BUDGETS,
+                 levels: tuple[float, ...] = LEVELS, budgets: tuple[int, ...] | None = None,
                  round_off: float = ROUND_OFF, ioh: str | Path | None = None,
-                 formats: tuple[str, ...] = FORMATS, style: str = "paper", command: str | None = None) -> dict:  # fmt: skip
+                 formats: tuple[str, ...] = FORMATS, style: str = "paper", command: str | None = None,
+                 tolerance: float | None = None, latex: bool = False) -> dict:  # fmt: skip
     """Build every table and figure of the runs under ``paths`` into ``out``, the IOHprofiler
     export into ``ioh`` (default ``out/ioh``); returns the tables. ``only``: ``KEY=VALUE``
     settings a run must have been given to count (e.g. ``refine=none``); ``target``: one
     absolute target cost instead of ``levels`` x f_ref; ``formats``: of the figures (none: no
-    figures); ``style``: ``paper`` (3.5 in wide, 8-9 pt) or ``screen``; ``command``: what the
-    page says made it. Also writes ``index.html``, the report as one page. Bad input is a ReportError (a ValueError, one line), raised before anything is
-    written."""
+    figures); ``style``: of the figure files, ``paper`` (3.5 in or 7.16 in wide, 8-9 pt) or
+    ``screen`` (the page's figures are always screen-sized); ``command``: what the page says made
+    it; ``budgets``: fixed budgets (default: from the runs); ``tolerance``: final costs closer than
+    this x f_ref are one result (default: the targets' resolution); ``latex``: the headline tables
+    as booktabs .tex files too. Also writes ``index.html``, the report as one page, and
+    ``conclusions.json``. Bad input is a ReportError (a ValueError, one line), raised before
+    anything is written."""
     if not paths:
         raise ReportError("no directory given")
     out = Path(out) if out is not None else Path(paths[0]) / "report"
@@ -195,7 +216,9 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
                               f"({', '.join(sorted(FigureCanvasBase.get_supported_filetypes()))})")  # fmt: skip
         if style not in figures.STYLES:
             raise ReportError(f"--style: {style} is not a style ({', '.join(figures.STYLES)})")
-        rule = TargetRule(tuple(dict.fromkeys(levels)), target, round_off)
+        if tolerance is not None and not (tolerance >= 0 and tolerance < 1):
+            raise ReportError(f"--tolerance: {tolerance:g} is not a fraction of f_ref in [0, 1)")
+        rule = TargetRule(tuple(dict.fromkeys(levels)), target, round_off, tolerance)
         runs, left = find_runs(paths)
         wanted = parse_overrides(list(only))
         runs = [r for r in runs if _matches(r, wanted)]
@@ -203,13 +226,18 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
             reasons = "; ".join(f"{p}: {why}" for p, why in left) or "no convergence.csv found"
             raise ReportError(f"no finished run under {', '.join(map(str, paths))}" + (f" with {' '.join(only)}" if only else "")
                              + f" ({reasons})")  # fmt: skip
-        t = build_tables(runs, rule, tuple(budgets))
-        t["rule"] = rule
+        where = out.resolve()
+        t = build_tables(runs, rule, tuple(budgets) if budgets else None, where)
+        t["left_out"], t["notes"] = pd.DataFrame([(os.path.relpath(p, where), why) for p, why in left], columns=["run", "reason"]), []
+        t["left_as_found"] = left
         _write_tables(t, stage)
         figs, shown = [], []
         if formats:
-            with figures.style(style):
-                figs, shown = drawing.draw(runs, t, stage, tuple(formats), rule)
+            figs, shown = drawing.draw(runs, t, stage, tuple(formats), rule, style)
+        if latex:
+            from zrp_ga.report import latex as tex
+
+            tex.write(t, stage)
         if "ecdf_targets" in t:
             t["ecdf_targets"].to_csv(stage / "ecdf_targets.csv", index=False)
         order = list(t["summary"]["configuration"])
@@ -218,10 +246,10 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
         (stage / IOH).mkdir()
         notes = [f"not in the IOH export: {p} ({why})" for p, why in ioh_export.export(runs, t["labels"], t["shown"], stage / IOH)]
         notes += [f"no Table 2 or 3: {p} cannot be read" for p in unread]
-        t["left_out"], t["notes"] = pd.DataFrame(left, columns=["run", "reason"]), notes
+        t["notes"] = notes
         t["left_out"].to_csv(stage / "left_out.csv", index=False)
         made = command or "zrp-ga-report " + " ".join(map(str, paths)) + f" --out {out}"
-        page.write(stage / "index.html", t, figs, runs, made, [str(p) for p in paths])
+        page.write(stage / "index.html", t, figs, runs, made, [str(p) for p in paths], where)
         _publish(stage, out, ioh)
     t.update(shown_in_figures=shown, single_run=str(single.path), out=str(out))
     return t
@@ -233,7 +261,7 @@ def console(t: dict, max_rows: int = 12) -> str:
     rule: TargetRule = t["rule"]
     runs, floors = t["runs"], t["floors"]
     lines = [f"{len(runs)} runs of {runs['configuration'].nunique()} configurations on {len(floors)} instance(s); report in {t['out']}"]
-    lines += [f"left out {run}: {why}" for run, why in t["left_out"].itertuples(index=False)]
+    lines += [f"left out {run}: {why}" for run, why in t.get("left_as_found", t["left_out"].itertuples(index=False))]
     lines += [f"note: {note}" for note in t["notes"]]
     if rule.absolute is not None:
         lines.append(f"\nTarget: best cost <= {rule.absolute:g} on every instance (--target).")

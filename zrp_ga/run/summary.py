@@ -81,8 +81,9 @@ UNCERTAINTY, COVERAGE = "uncertainty.json", "coverage.json"
 
 def floor(task: Task, key: str | None = None, cache: Cache | None = None, sweep: Path | None = None) -> dict[str, float]:
     """The instance's floor: Levenberg-Marquardt's final cost from the nominal model (``cost``,
-    as zrp-ga-report reads it; its evaluations too), and ``reference`` = max(floor, ROUND_OFF x nominal cost), the cost the
-    objective ``over_floor`` divides by. With ``key``, computed once per instance in this
+    as zrp-ga-report reads it; its evaluations ``lm_nevals`` and validation RMS ``lm_val_rms_mm``,
+    the report's reference, too), and ``reference`` = max(floor, ROUND_OFF x nominal cost), the
+    cost the objective ``over_floor`` divides by. With ``key``, computed once per instance in this
     process (``cache``) and once per ``sweep`` (kept beside its manifest, as :func:`diagnostics` is)."""
     if key is None or cache is None:
         return _lm_floor(task)
@@ -99,7 +100,10 @@ def _lm_floor(task: Task) -> dict[str, float]:
     lm = LM().run(p, np.random.default_rng(0))
     nominal = float(p.costs(np.zeros(p.lower.size))[0])
     best = min(lm.cost, nominal) if np.isfinite(lm.cost) else nominal
-    return {"cost": float(best), "reference": max(float(best), ROUND_OFF * nominal), "lm_nevals": int(lm.nevals)}
+    x = lm.x if lm.x is not None and best == lm.cost else np.zeros(p.lower.size)
+    val_mm = float(task.judge.validation_errors(x)[0][0]) * 1e3  # the reference's validation error, for the report
+    return {"cost": float(best), "reference": max(float(best), ROUND_OFF * nominal), "lm_nevals": int(lm.nevals),
+            "lm_val_rms_mm": val_mm if np.isfinite(val_mm) else None}
 
 
 def objective(cfg, task: Task, written: dict, key: str, cache: Cache, sweep: Path | None) -> float:
