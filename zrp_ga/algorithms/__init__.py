@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 from deap import base
@@ -32,7 +32,12 @@ from numpy.typing import NDArray
 from zrp_ga.core.problem import Problem
 from zrp_ga.problems.size import FLOAT, Lower, ProblemSize
 
+if TYPE_CHECKING:
+    import pandas as pd
+
 Array = NDArray[np.float64]
+Row = dict[str, Any]  # a generation's row: gen, nevals, the statistics, what the callbacks add
+State = dict[str, Any]  # a checkpoint's state: arrays and plain numbers (Algorithm.state)
 
 STATS = ("best", "mean", "median", "std", "worst")
 INDIVIDUAL_BYTES = 600  # a DEAP individual's objects beside its genes
@@ -72,7 +77,7 @@ def stats_together(costs: Sequence[Array]) -> list[dict[str, float] | None]:
     """:func:`population_stats` of several runs' costs of one size at once (None for a run with
     a NaN or inf cost: its statistics are of its finite costs, computed alone)."""
     C = np.sort(np.stack(costs), axis=1)
-    ok = np.isfinite(C).all(axis=1)
+    ok = np.asarray(np.isfinite(C).all(axis=1))
     if not ok.any():
         return [None] * len(costs)
     F = C[ok]
@@ -98,16 +103,16 @@ class Result:
     """What a run found: the best genome ``x`` and its ``cost``, the evaluations it took, why it
     stopped, the first population (the paper's Table 2) and one row per generation."""
 
-    x: Array
+    x: Array | None  # None: no genome had a finite cost
     cost: float
     nevals: int
     stop_reason: str
     initial_x: Array
     initial_costs: Array
-    rows: list[dict] = dataclasses.field(default_factory=list)
+    rows: list[Row] = dataclasses.field(default_factory=list)
 
     @property
-    def history(self):
+    def history(self) -> pd.DataFrame:
         """The rows as a pandas DataFrame."""
         import pandas as pd
 
@@ -118,14 +123,14 @@ class Callback:
     """What happens around a run; every method is optional."""
 
     @classmethod
-    def together(cls, pairs: Sequence[tuple[Callback, Algorithm]]) -> None:
+    def together(cls, pairs: Sequence[tuple[Self, Algorithm]]) -> None:
         """Before the ``on_generation`` calls of runs evolved together
         (:meth:`Algorithm.run_together`): the work of all these callbacks of this class, each
         with its run, that is cheaper done at once (judging every run's new best genome in one call)."""
 
     def on_start(self, algorithm: Algorithm) -> None: ...
 
-    def on_generation(self, algorithm: Algorithm, row: dict) -> None: ...
+    def on_generation(self, algorithm: Algorithm, row: Row) -> None: ...
 
     def on_interrupt(self, algorithm: Algorithm) -> None: ...
 
@@ -147,7 +152,7 @@ class Algorithm:
         self._t0 = time.perf_counter()
         self.shared_s = {"eval_s": 0.0, "refine_s": 0.0}  # this run's share of work done for runs together
         self.clock: float | None = None  # evolved together: this run's share of the wall time so far, s
-        self.random_state: tuple | None = None  # evolved together: this run's state of `random` (Algorithm.state)
+        self.random_state: tuple[Any, ...] | None = None  # evolved together: this run's state of `random` (Algorithm.state)
         self._stats: dict[str, float] | None = None  # this generation's statistics, when computed together
 
     # --- what a subclass provides --------------------------------------------------------------
@@ -162,15 +167,16 @@ class Algorithm:
     def step(self) -> None:
         raise NotImplementedError
 
-    @staticmethod
-    def step_together(runs: Sequence[Algorithm]) -> None:
+    @classmethod
+    def step_together(cls, runs: Sequence[Self]) -> None:
         """One generation of each of ``runs`` (set up on one problem); a subclass that can share
         the work of its runs' generations overrides it (the GA)."""
         for a in runs:
             a.step()
 
-    def current(self) -> tuple[Array, float]:
-        """The genome and cost a generation's row reports (default: the best ever seen)."""
+    def current(self) -> tuple[Array | None, float]:
+        """The genome and cost a generation's row reports (default: the best ever seen; None
+        before a finite cost)."""
         return self.best_x, self.best_cost
 
     def fraction_done(self) -> float | None:
@@ -203,25 +209,25 @@ class Algorithm:
         if finite[k] < self.best_cost:
             self.best_x, self.best_cost = np.array(X[k], dtype=float), float(costs[k])
 
-    def row(self) -> dict:
+    def row(self) -> Row:
         """This generation's row: gen, nevals, the population statistics, the reported cost."""
         _, cost = self.current()
         stats, self._stats = self._stats or population_stats(self.costs), None
         return dict(gen=self.gen, nevals=self.nevals, **stats | {"best": cost}, n_nonfinite=self.n_nonfinite)
 
-    def emit(self, callbacks: Sequence[Callback], rows: list[dict]) -> None:
+    def emit(self, callbacks: Sequence[Callback], rows: list[Row]) -> None:
         row = self.row()
         for cb in callbacks:
             cb.on_generation(self, row)
         rows.append(row)
 
     def run(
-        self, problem: Problem, rng: np.random.Generator, callbacks: Sequence[Callback] = (), state: dict | None = None
+        self, problem: Problem, rng: np.random.Generator, callbacks: Sequence[Callback] = (), state: State | None = None
     ) -> Result:
         """Set up, start (or continue from ``state``), step until a stop criterion, return the
         result; the callbacks see every generation, and an interrupt (Ctrl-C) before re-raising."""
         self.setup(problem, rng)
-        rows: list[dict] = []
+        rows: list[Row] = []
         for cb in callbacks:
             cb.on_start(self)
         try:
@@ -245,8 +251,9 @@ class Algorithm:
 
     @classmethod
     def run_together(
-        cls, algorithms: Sequence[Algorithm], problem: Problem, rngs: Sequence[np.random.Generator],
-        callbacks: Sequence[Sequence[Callback]], states: Sequence[dict | None], finished: Callable | None = None,
+        cls, algorithms: Sequence[Self], problem: Problem, rngs: Sequence[np.random.Generator],
+        callbacks: Sequence[Sequence[Callback]], states: Sequence[State | None],
+        finished: Callable[[int, Result], object] | None = None,
     ) -> list[Result | Exception]:  # fmt: skip
         """:meth:`run` for several runs of this class on one problem, evolved in lockstep: a
         generation of all the runs still going at once (:meth:`step_together`), then each run's
@@ -256,8 +263,8 @@ class Algorithm:
         result, or the exception it failed with (that run alone). At Ctrl-C every unfinished
         run's callbacks see ``on_interrupt`` (their checkpoints) before KeyboardInterrupt goes on."""
         n = len(algorithms)
-        out: list[Any] = [None] * n
-        rows: list[list[dict]] = [[] for _ in range(n)]
+        out: list[Result | Exception | None] = [None] * n
+        rows: list[list[Row]] = [[] for _ in range(n)]
         live: list[int] = []
         fresh: list[int] = []
         for k, a in enumerate(algorithms):
@@ -265,11 +272,12 @@ class Algorithm:
             try:
                 a.clock = 0.0
                 a.setup(problem, rngs[k])
-                if states[k] is not None:
-                    a.restore(states[k])
+                state = states[k]
+                if state is not None:
+                    a.restore(state)
                 for cb in callbacks[k]:
                     cb.on_start(a)
-                if states[k] is None:
+                if state is None:
                     a.initialize()
                     fresh.append(k)
                 live.append(k)
@@ -309,10 +317,13 @@ class Algorithm:
                     for cb in callbacks[k]:
                         cb.on_interrupt(algorithms[k])
             raise
-        return out
+        ended = [r for r in out if r is not None]
+        assert len(ended) == n  # every run ended with its result or its error
+        return ended
 
     @staticmethod
-    def _emit_together(algorithms, callbacks, rows, ks: list[int], out: list, spent: float) -> None:
+    def _emit_together(algorithms: Sequence[Algorithm], callbacks: Sequence[Sequence[Callback]], rows: list[list[Row]],
+                       ks: list[int], out: list[Result | Exception | None], spent: float) -> None:  # fmt: skip
         """The rows of runs ``ks`` to their callbacks: statistics at once, each callback class's
         shared work (:meth:`Callback.together`), then each run's callbacks; ``spent``: the
         generation's time so far, shared among the runs. A run whose callback fails ends with
@@ -322,7 +333,7 @@ class Algorithm:
         t0 = time.perf_counter()
         for k, stats in zip(ks, stats_together([algorithms[k].costs for k in ks])):
             algorithms[k]._stats = stats
-        by_class: dict[type, list] = {}
+        by_class: dict[type[Callback], list[tuple[Callback, Algorithm]]] = {}
         for k in ks:
             for cb in callbacks[k]:
                 by_class.setdefault(type(cb), []).append((cb, algorithms[k]))
@@ -330,14 +341,14 @@ class Algorithm:
             kind.together(pairs)
         share = (spent + time.perf_counter() - t0) / len(ks)
         for k in ks:
-            algorithms[k].clock += share
+            algorithms[k].clock = (algorithms[k].clock or 0.0) + share  # 0.0 from the start (run_together)
             try:
                 algorithms[k].emit(callbacks[k], rows[k])
             except Exception as exc:
                 out[k] = exc
 
-    def state(self) -> dict:
+    def state(self) -> State:
         raise NotImplementedError(f"{type(self).__name__} keeps no checkpoints")
 
-    def restore(self, state: dict) -> None:
+    def restore(self, state: State) -> None:
         raise NotImplementedError(f"{type(self).__name__} keeps no checkpoints")

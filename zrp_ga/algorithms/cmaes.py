@@ -4,6 +4,9 @@ ranges, each gene's initial standard deviation ``sigma0`` times its range; a row
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 
 from zrp_ga.algorithms import Algorithm, AlgorithmSize, Result, evaluations, genomes_bytes
@@ -13,7 +16,7 @@ from zrp_ga.problems.size import FLOAT, ProblemSize
 
 
 class CMAES(Algorithm):
-    def __init__(self, population, sigma0: float) -> None:
+    def __init__(self, population: PopulationConf | Mapping[str, Any], sigma0: float) -> None:
         super().__init__()
         self.pop_conf: PopulationConf = section(PopulationConf, population, "population")
         checks.cmaes_population(self.pop_conf.lambda_)

@@ -70,4 +70,4 @@ class Exchange(Algorithm):
             self.stop_reason = "max_evals"
 
     def result(self) -> Result:
-        return Result(self.best_x.copy(), self.best_cost, self.nevals, self.stop_reason, *self.initial)
+        return Result(None if self.best_x is None else self.best_x.copy(), self.best_cost, self.nevals, self.stop_reason, *self.initial)

@@ -13,14 +13,14 @@ import functools
 import itertools
 import random
 import time
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, Self
 
 import numpy as np
 from numpy.typing import NDArray
 
 import zrp_ga.operators as operators  # the package, not the top module (which leads up to the API)
-from zrp_ga.algorithms import Algorithm, AlgorithmSize, Array, Result, evaluations, genomes_bytes
+from zrp_ga.algorithms import Algorithm, AlgorithmSize, Array, Result, State, evaluations, genomes_bytes
 from zrp_ga.core.problem import GeneBlocks, LeastSquares, Problem, Repairing, Sampling
 from zrp_ga.core.schema import ConfigError, PopulationConf, RefineConf, Repair, SelectionConf, Strategy, VariationConf, section
 from zrp_ga.operators.base import Streams
@@ -28,6 +28,9 @@ from zrp_ga.operators.repair import repair
 from zrp_ga.problems.size import ProblemSize
 
 UNARY = (("mutate", "mutation"), ("invert", "inversion"), ("rotate", "rotation"))
+Settings = Mapping[str, Any]  # a config section's settings, before the schema's check (zrp_ga.core.schema.section)
+# An operator runs evolved together can share: its function, its parameters, and a key equal for equal ones.
+Shared = tuple[Callable[..., Any], dict[str, Any], tuple[Any, ...]]
 
 
 def rank(costs: Array) -> NDArray[np.intp]:
@@ -43,8 +46,10 @@ class GA(Algorithm):
     checkpointable = True
 
     def __init__(
-        self, population, selection, crossover, mutation, inversion, rotation, refine, strategy, elite, repair,
-        target_cost=None, stagnation=None,
+        self, population: PopulationConf | Settings, selection: SelectionConf | Settings, crossover: VariationConf | Settings,
+        mutation: VariationConf | Settings, inversion: VariationConf | Settings, rotation: VariationConf | Settings,
+        refine: RefineConf | Settings, strategy: Strategy | str, elite: int, repair: Repair | str,
+        target_cost: float | None = None, stagnation: int | None = None,
     ) -> None:  # fmt: skip
         super().__init__()
         self.pop_conf: PopulationConf = section(PopulationConf, population, "population")
@@ -84,7 +89,7 @@ class GA(Algorithm):
         tb = self.toolbox
         blocks = problem.gene_blocks if isinstance(problem, GeneBlocks) else [(0, problem.lower.size)]
         context = dict(low=problem.lower, up=problem.upper, blocks=blocks, problem=problem)
-        self.ops: dict[str, tuple] = {}  # alias -> (function, parameters, key), for runs evolved together
+        self.ops: dict[str, Shared] = {}  # alias -> (function, parameters, key), for runs evolved together
         self._register("select", operators.build(self.selection.op, "selection.op", "selection", rng))
         families = [("mate", "crossover")] + list(UNARY)
         for alias, key in families:
@@ -103,13 +108,13 @@ class GA(Algorithm):
         # runs evolved together that repair alike into the same ranges are repaired in one call
         self.repair_key = None if isinstance(problem, Repairing) else (self.repair, id(problem))
 
-    def _register(self, alias: str, op: Callable) -> None:
+    def _register(self, alias: str, op: Callable[..., Any]) -> None:
         """Register ``op`` in the toolbox; remember its function and parameters (those of a
         :func:`zrp_ga.operators.build` partial) so that runs evolved together with the same
         operator can share one call (:func:`step_together`)."""
         self.toolbox.register(alias, op)
-        fn = getattr(op, "func", None)
-        if isinstance(op, functools.partial) and getattr(fn, "streams", False):
+        if isinstance(op, functools.partial) and getattr(op.func, "streams", False):
+            fn = op.func
             params = {k: v for k, v in op.keywords.items() if k != "rng"}
             self.ops[alias] = (fn, params, (alias, fn, tuple((k, _same(v)) for k, v in sorted(params.items()))))
 
@@ -133,8 +138,8 @@ class GA(Algorithm):
         (:func:`step_together` with this run alone)."""
         step_together([self])
 
-    @staticmethod
-    def step_together(runs: Sequence[GA]) -> None:
+    @classmethod
+    def step_together(cls, runs: Sequence[Self]) -> None:
         step_together(runs)
 
     def draws_from_random(self) -> bool:
@@ -181,7 +186,7 @@ class GA(Algorithm):
         return Result(None if self.best_x is None else self.best_x.copy(), self.best_cost, self.nevals, self.stop_reason, *self.initial)
 
     # --- checkpoints (DEAP's recipe: population, best, both random states) ---------------------
-    def state(self) -> dict:
+    def state(self) -> State:
         """Everything needed to continue exactly: arrays and plain numbers (no objects)."""
         return dict(
             pop=self.pop, costs=self.costs, initial_x=self.initial[0], initial_costs=self.initial[1],
@@ -191,7 +196,7 @@ class GA(Algorithm):
             wall_s=self.elapsed(),
         )  # fmt: skip
 
-    def restore(self, state: dict) -> None:
+    def restore(self, state: State) -> None:
         self.pop, self.costs = np.asarray(state["pop"], dtype=float), np.asarray(state["costs"], dtype=float)
         self._best = None
         self.initial = (np.asarray(state["initial_x"]), np.asarray(state["initial_costs"]))
@@ -377,7 +382,7 @@ def _survive(runs: Sequence[GA], off: Array, off_costs: Array, spans: list[slice
     R = len(runs)
     evaluated = np.bincount(owner[new], minlength=R) + np.bincount(owner[refined], minlength=R)  # a step evaluates its residual once
     nonfinite = np.bincount(owner[new[~np.isfinite(values)]], minlength=R)
-    groups: dict[tuple, list[int]] = {}
+    groups: dict[tuple[Any, ...], list[int]] = {}
     for i, ga in enumerate(runs):
         lam, mu = spans[i].stop - spans[i].start, ga.pop_conf.mu
         strategy = ga.strategy if lam >= mu else Strategy.mu_plus_lambda
@@ -405,16 +410,19 @@ def _survive(runs: Sequence[GA], off: Array, off_costs: Array, spans: list[slice
             ga.stop_reason = ga._stop_reason()
 
 
-def _plus_together(P, Pc, Q, Qc, mu, elite):
+Survival = tuple[Array, Array, NDArray[np.intp]]  # the pool's genes and costs, the survivors' indices in it
+
+
+def _plus_together(P: Array, Pc: Array, Q: Array, Qc: Array, mu: int, elite: int) -> Survival:
     genes, pool = np.concatenate([P, Q], axis=1), np.concatenate([Pc, Qc], axis=1)
     return genes, pool, rank(pool)[:, :mu]
 
 
-def _comma_together(P, Pc, Q, Qc, mu, elite):
+def _comma_together(P: Array, Pc: Array, Q: Array, Qc: Array, mu: int, elite: int) -> Survival:
     return Q, Qc, rank(Qc)[:, :mu]
 
 
-def _generational_together(P, Pc, Q, Qc, mu, elite):
+def _generational_together(P: Array, Pc: Array, Q: Array, Qc: Array, mu: int, elite: int) -> Survival:
     genes, pool = np.concatenate([P, Q], axis=1), np.concatenate([Pc, Qc], axis=1)
     return genes, pool, np.concatenate([rank(Pc)[:, :elite], Pc.shape[1] + rank(Qc)[:, : mu - elite]], axis=1)
 

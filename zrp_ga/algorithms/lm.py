@@ -15,10 +15,12 @@ cost; the fixed scale took as many or fewer evaluations."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
-from zrp_ga.algorithms import Algorithm, AlgorithmSize, Callback, Result, genomes_bytes
-from zrp_ga.core.problem import LeastSquares
+from zrp_ga.algorithms import Algorithm, AlgorithmSize, Callback, Result, Row, State, genomes_bytes
+from zrp_ga.core.problem import LeastSquares, Problem
 from zrp_ga.core.schema import ConfigError
 from zrp_ga.problems.least_squares import X_SCALE, levenberg_marquardt  # noqa: F401 (X_SCALE: named here as before)
 from zrp_ga.problems.size import FLOAT, ProblemSize
@@ -37,7 +39,7 @@ class LM(Algorithm):
         held = genomes_bytes(1, problem.genes) + FLOAT * 2 * problem.rows * problem.genes
         return AlgorithmSize(1, self.max_evals, held, lower=("problem", "Levenberg-Marquardt holds one genome: lower the problem's size"))
 
-    def run(self, problem: LeastSquares, rng: np.random.Generator, callbacks: tuple[Callback, ...] = (), state: dict | None = None) -> Result:
+    def run(self, problem: Problem, rng: np.random.Generator, callbacks: Sequence[Callback] = (), state: State | None = None) -> Result:
         """One fit (:func:`zrp_ga.problems.least_squares.levenberg_marquardt`); the callbacks see
         every residual evaluation."""
         if state is not None:
@@ -46,7 +48,7 @@ class LM(Algorithm):
             raise ConfigError("algorithm: Levenberg-Marquardt needs a residual and its Jacobian (a calibration problem); "
                               "this problem has none")  # fmt: skip
         self.setup(problem, rng)
-        rows: list[dict] = []
+        rows: list[Row] = []
         for cb in callbacks:
             cb.on_start(self)
 

@@ -49,4 +49,4 @@ class RandomSearch(Algorithm):
         return self.nevals / self.samples
 
     def result(self) -> Result:
-        return Result(self.best_x.copy(), self.best_cost, self.nevals, self.stop_reason, *self.initial)
+        return Result(None if self.best_x is None else self.best_x.copy(), self.best_cost, self.nevals, self.stop_reason, *self.initial)

@@ -29,7 +29,7 @@ import math
 import types
 import typing
 from collections.abc import Callable, Mapping
-from typing import Any, Optional
+from typing import Any, Optional, TypeVar
 
 MISSING: Any = "???"  # a key without a value (OmegaConf's literal mark for one): a target is called without it
 
@@ -462,7 +462,10 @@ def from_dict(data: Mapping[str, Any]) -> Config:
     return cfg
 
 
-def section(cls: type, node: Any, key: str) -> Any:
+S = TypeVar("S")
+
+
+def section(cls: type[S], node: Any, key: str) -> S:
     """``node`` (the settings of one section, as a dict or already a ``cls``) as a checked ``cls``
     instance (:func:`from_dict`'s checks, then the section's own ``check``)."""
     obj = _typed(cls, node, key)

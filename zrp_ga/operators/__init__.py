@@ -21,7 +21,7 @@ from __future__ import annotations
 import functools
 import inspect
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 
@@ -114,9 +114,13 @@ def target(node: Mapping[str, Any], key: str, family: str | None = None) -> tupl
     return fn, params
 
 
+@overload
+def build(node: Mapping[str, Any], key: str, family: str, rng: np.random.Generator, **context: Any) -> Callable[..., Any]: ...
+@overload
+def build(node: None, key: str, family: str, rng: np.random.Generator, **context: Any) -> None: ...
 def build(
     node: Mapping[str, Any] | None, key: str, family: str, rng: np.random.Generator, **context: Any
-) -> Callable | None:
+) -> Callable[..., Any] | None:
     """The operator of config node ``node`` (None: no operator), ready for the GA: the node's
     parameters, ``rng``, and whichever of ``context`` (the gene ranges ``low`` and ``up``, the
     gene ``blocks``, the ``problem``) the function takes bound; per-individual functions wrapped by the adapter for ``family``

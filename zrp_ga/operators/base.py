@@ -18,7 +18,7 @@ exactly those it would have alone. An operator that draws only through :func:`dr
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,7 +39,7 @@ class Streams:
     """The generators of several runs and how many consecutive rows of a batch each one owns
     (run ``i``: ``counts[i]`` rows, after those of the runs before it)."""
 
-    def __init__(self, generators: Sequence[np.random.Generator], counts: Sequence[int]):
+    def __init__(self, generators: Sequence[np.random.Generator], counts: Iterable[int]):
         self.generators, self.counts = list(generators), [int(c) for c in counts]
         ends = np.cumsum(self.counts)
         self.slices = [slice(int(e - c), int(e)) for e, c in zip(ends, self.counts)]
