@@ -208,3 +208,12 @@ def test_an_interrupted_batch_continues_to_the_files_of_an_uninterrupted_one(bat
     for k in range(len(MIXED)):
         _same_run(tmp_path / str(k), together / str(k))
     assert [r["status"] for r in directory.job_states(tmp_path)] == ["done"] * len(MIXED)
+
+
+def test_a_batch_runs_a_job_that_cannot_be_evolved_together_alone(tmp_path):
+    """sweep_batch takes any job: one of an optimiser other than the GA (Levenberg-Marquardt)
+    runs alone, to the objective sweep_job gives it in another directory."""
+    lines = [["algorithm=lm"]]
+    (value,) = sweep_batch(_jobs(tmp_path / "batch", lines), Cache())
+    assert value == sweep_job(_jobs(tmp_path / "job", lines)[0], Cache())
+    assert directory.job_states(tmp_path / "batch")[0]["status"] == "done"

@@ -183,6 +183,11 @@ class Algorithm:
         """How much of the budget is spent, for a progress line; None if unknown."""
         return None
 
+    def draws_from_random(self) -> bool:
+        """Whether the run draws from Python's ``random`` (one state per process): such a run is
+        not evolved together with others (the GA, when an operator is DEAP's own)."""
+        return False
+
     def size(self, problem: ProblemSize) -> AlgorithmSize | None:
         """What this optimiser, as configured, holds and evaluates on a problem of ``problem``'s
         size (:class:`AlgorithmSize`), declared before the problem is built. None: it declares

@@ -16,13 +16,19 @@ import dataclasses
 import logging
 import random
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from zrp_ga.algorithms import Callback, Result
 from zrp_ga.core.errors import warn
 from zrp_ga.run import directory
 from zrp_ga.run.build import Prepared, inputs
 from zrp_ga.run.directory import Sweep
 from zrp_ga.run.shared import Cache
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from zrp_ga.run.summary import Summary
 
 log = logging.getLogger("zrp_ga")
 
@@ -39,12 +45,15 @@ class Start:
     from ``[seed, 1]`` and up), the state of Python's ``random`` after ``random.seed(seed)``
     (DEAP's own operators draw from it) and the callbacks, in their order."""
 
-    rng: Any  # numpy.random.Generator
-    random_state: tuple
-    callbacks: list
+    rng: np.random.Generator
+    random_state: tuple[Any, ...]
+    callbacks: list[Callback]
 
 
-def start(p: Prepared, progress: bool, together: bool = False, hashed: dict[str, dict] | None = None) -> Start:
+Ran = tuple[Result, "Summary"]  # a run's end: its result and its summary (summary.json)
+
+
+def start(p: Prepared, progress: bool, together: bool = False, hashed: dict[str, dict[str, str]] | None = None) -> Start:
     """The start of ``p`` (``together``: evolved with other runs); ``hashed``: the hashes of the
     robot and data files of the instances seen so far (:func:`zrp_ga.run.build.inputs`, computed
     once per instance)."""
@@ -57,7 +66,7 @@ def start(p: Prepared, progress: bool, together: bool = False, hashed: dict[str,
     random.seed(seed)
     seeded = random.getstate()
     random.setstate(before)
-    cbs: list = [callbacks.Timing(), callbacks.Validation(p.task.judge)]
+    cbs: list[Callback] = [callbacks.Timing(), callbacks.Validation(p.task.judge)]
     if p.out is not None:
         rows = callbacks.ConvergenceLog(p.out / directory.CONVERGENCE, None if p.state is None else int(p.state["gen"]),
                                         buffered=together)  # fmt: skip
@@ -81,7 +90,7 @@ def diagnostics(p: Prepared, cache: Cache, sweep: Sweep | None) -> dict[str, Any
     return summary.diagnostics(p.task, p.state is None, p.instance, cache, _where(sweep))
 
 
-def finish(p: Prepared, result: Any, figures: dict[str, Any], cache: Cache, sweep: Sweep | None) -> tuple[Any, dict]:
+def finish(p: Prepared, result: Result, figures: dict[str, Any], cache: Cache, sweep: Sweep | None) -> Ran:
     """The run's end (``figures``: its :func:`diagnostics`): its summary and objective, its files
     (with a directory) and its warnings; the result and the summary."""
     from zrp_ga.run import summary

@@ -21,8 +21,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from zrp_ga.algorithms import Algorithm, State
 from zrp_ga.core import checks, schema, targets
 from zrp_ga.core.schema import Config, ConfigError, Objective
+from zrp_ga.problems import Task
 from zrp_ga.problems.protocol import SelfJudging
 from zrp_ga.run import budget, directory
 from zrp_ga.run.shared import CACHE, Cache
@@ -36,17 +38,17 @@ class Prepared:
     """A checked config and what it builds."""
 
     cfg: Config  # the run's config
-    task: Any  # zrp_ga.problems.Task
-    algorithm: Any  # zrp_ga.algorithms.Algorithm
-    state: dict | None  # a checkpoint's state when resuming
+    task: Task  # the problem instance
+    algorithm: Algorithm  # the optimiser, built from cfg.algorithm
+    state: State | None  # a checkpoint's state when resuming
     out: Path | None  # the run directory (None: no files)
     instance: str  # the problem instance's key (zrp_ga.run.shared)
     choices: dict[str, Any] = dataclasses.field(default_factory=dict)  # the config's group options, for summary.json
     resolved: dict[str, Any] = dataclasses.field(default_factory=dict)  # cfg as plain values (schema.to_dict), for the files
 
 
-def prepare(cfg: Config, out: Path | None, overrides: Sequence[str] = (), choices: dict | None = None,
-            cache: Cache = CACHE, task: Any = None) -> Prepared:  # fmt: skip
+def prepare(cfg: Config, out: Path | None, overrides: Sequence[str] = (), choices: dict[str, Any] | None = None,
+            cache: Cache = CACHE, task: Task | None = None) -> Prepared:  # fmt: skip
     """Check ``cfg`` and build its objects, before ``out`` is created (None: no run directory).
     With ``resume``, the checkpoint's run instead, in its own directory; ``overrides``: the
     command line's settings, of which a resumed run accepts none but ``progress``. ``choices``:
@@ -71,8 +73,8 @@ def prepare(cfg: Config, out: Path | None, overrides: Sequence[str] = (), choice
     return build(cfg, out, state, choices or {}, cache, task)
 
 
-def build(cfg: Config, out: Path | None, state: dict | None, choices: dict, cache: Cache = CACHE,
-          task: Any = None) -> Prepared:  # fmt: skip
+def build(cfg: Config, out: Path | None, state: State | None, choices: dict[str, Any], cache: Cache = CACHE,
+          task: Task | None = None) -> Prepared:  # fmt: skip
     """The robot, problem and optimiser of the checked task config ``cfg``; the problem
     instance ``task`` if given, else from ``cache`` when it was built before."""
     from threadpoolctl import threadpool_limits
@@ -83,12 +85,12 @@ def build(cfg: Config, out: Path | None, state: dict | None, choices: dict, cach
     resolved = schema.to_dict(cfg)
     key = instance_key(cfg, resolved)
     if task is None:
-        def limited() -> Any:
+        def limited() -> Task:
             with threadpool_limits(limits=1, user_api="blas"):  # the problem's SVDs: see zrp_ga.run.execute
                 return _instance(cfg)
 
         task = cache.instance(key, limited)  # built once per instance (threadpoolctl's set-up costs ms)
-    algorithm = targets.create(cfg.algorithm, "algorithm")
+    algorithm: Algorithm = targets.create(cfg.algorithm, "algorithm")
     if state is not None and not algorithm.checkpointable:
         raise ConfigError(f"resume: {type(algorithm).__name__} runs keep no checkpoints")
     if cfg.objective is Objective.over_floor and isinstance(task, SelfJudging):
@@ -96,7 +98,7 @@ def build(cfg: Config, out: Path | None, state: dict | None, choices: dict, cach
     return Prepared(cfg, task, algorithm, state, out, key, dict(choices), resolved)
 
 
-def instance_key(cfg: Config, resolved: dict | None = None) -> str:
+def instance_key(cfg: Config, resolved: dict[str, Any] | None = None) -> str:
     """The problem instance's key: the robot and problem settings as plain values and the seed,
     as JSON, with the size and modification time of the files they name (an edited file is
     another instance). ``resolved``: ``cfg`` as plain values already (:func:`schema.to_dict`)."""
@@ -104,10 +106,10 @@ def instance_key(cfg: Config, resolved: dict | None = None) -> str:
     return json.dumps({**parts, "seed": int(cfg.seed), "files": _stamps(cfg)}, sort_keys=True)
 
 
-def _stamps(cfg: Config) -> list:
+def _stamps(cfg: Config) -> list[list[str | int | None]]:
     from zrp_ga.data import resolve
 
-    out = []
+    out: list[list[str | int | None]] = []
     for name in (cfg.robot.file, *(schema.setting(cfg.problem, k) for k in DATA_KEYS)):
         if name:
             try:
@@ -118,10 +120,11 @@ def _stamps(cfg: Config) -> list:
     return out
 
 
-def _instance(cfg: Config) -> Any:
+def _instance(cfg: Config) -> Task:
     robot = targets.create(cfg.robot, "robot")
     budget.check_config(cfg, robot)  # memory and time, before the problem is built (zrp_ga.run.budget)
-    return targets.create(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
+    task: Task = targets.create(cfg.problem, "problem", robot=robot, run_seed=int(cfg.seed))
+    return task
 
 
 def _not_in_use(out: Path) -> None:
@@ -144,7 +147,7 @@ def check_writable(out: Path) -> None:
             return
 
 
-def _resume(cfg: Config, overrides: Sequence[str]) -> tuple[Path, dict, Config]:
+def _resume(cfg: Config, overrides: Sequence[str]) -> tuple[Path, State, Config]:
     """The run directory, checkpoint state and config of ``resume=DIR``; the other settings of
     the command line are refused (the run continues with its own)."""
     from zrp_ga.run import checkpoint
@@ -160,7 +163,7 @@ def _resume(cfg: Config, overrides: Sequence[str]) -> tuple[Path, dict, Config]:
     return out, state, typed(state.pop("config"))
 
 
-def typed(stored: dict) -> Config:
+def typed(stored: dict[str, Any]) -> Config:
     """A config read back from a file (plain values: Enums as their strings) with the schema's
     types again, so that a resumed run sees the same config as the run it continues; a value
     the schema refuses is a ConfigError naming the key."""
@@ -173,7 +176,7 @@ def typed(stored: dict) -> Config:
 DATA_KEYS = ("calibration_file", "validation_file")  # the problem's files, hashed into a checkpoint
 
 
-def inputs(cfg: Config, task: Any) -> dict[str, str]:
+def inputs(cfg: Config, task: Task) -> dict[str, str]:
     """What a run's result depends on besides its config, as hashes: the robot as built (its
     arrays and joint types) and the contents of the problem's data files, so that a resumed run
     can tell that they changed since its checkpoint."""
@@ -202,7 +205,7 @@ def inputs(cfg: Config, task: Any) -> dict[str, str]:
     return out
 
 
-def check_inputs(p: Prepared, recorded: dict | None, what: str = "resume") -> None:
+def check_inputs(p: Prepared, recorded: dict[str, str] | None, what: str = "resume") -> None:
     """Refuse to continue a checkpoint whose robot or data files (``recorded``:
     :func:`inputs` when it was written) are not those of ``p`` now."""
     if not recorded:

@@ -13,10 +13,12 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import IO, Any, TypeVar
 
 import numpy as np
+from numpy.typing import NDArray
 
-from zrp_ga.algorithms import Algorithm, Callback, Result
+from zrp_ga.algorithms import Algorithm, Callback, Result, Row, State
 from zrp_ga.core import compiled
 from zrp_ga.model.metrics import Judge
 from zrp_ga.run import checkpoint
@@ -26,6 +28,8 @@ COLUMNS = [
     "val_rms_mm", "val_max_mm", "param_err", "eval_s", "bookkeeping_s", "refine_s", "wall_s",
 ]  # fmt: skip
 WALL_CLOCK_COLUMNS = ["eval_s", "bookkeeping_s", "refine_s", "wall_s"]
+Array = NDArray[np.float64]
+R = TypeVar("R")
 
 
 class Timing(Callback):
@@ -45,10 +49,10 @@ class Timing(Callback):
     def _now(algorithm: Algorithm) -> float:
         return time.perf_counter() if algorithm.clock is None else algorithm.clock
 
-    def _timed(self, key: str) -> Callable:
-        def decorator(fn: Callable) -> Callable:
+    def _timed(self, key: str) -> Callable[[Callable[..., R]], Callable[..., R]]:
+        def decorator(fn: Callable[..., R]) -> Callable[..., R]:
             @functools.wraps(fn)
-            def timed(*args, **kwargs):
+            def timed(*args: Any, **kwargs: Any) -> R:
                 t0 = time.perf_counter()
                 try:
                     return fn(*args, **kwargs)
@@ -59,7 +63,7 @@ class Timing(Callback):
 
         return decorator
 
-    def on_generation(self, algorithm: Algorithm, row: dict) -> None:
+    def on_generation(self, algorithm: Algorithm, row: Row) -> None:
         now = self._now(algorithm)  # evolved with other runs: this run's share of their time
         total = now - self.last
         spent = {k: v + algorithm.shared_s.get(k, 0.0) for k, v in self.spent.items()}
@@ -75,13 +79,13 @@ class Validation(Callback):
 
     def __init__(self, judge: Judge):
         self.judge = judge
-        self._last: tuple[bytes, dict] | None = None
+        self._last: tuple[bytes, dict[str, float]] | None = None
 
     @classmethod
     def together(cls, pairs: Sequence[tuple[Validation, Algorithm]]) -> None:
         """Judge the new reported genomes of runs evolved together in one call per judge (the
         validation poses' positions of all of them at once); each callback then finds its own."""
-        todo: dict[int, list] = {}
+        todo: dict[int, list[tuple[Validation, Array]]] = {}
         for cb, algorithm in pairs:
             x = algorithm.current()[0]
             if x is not None:
@@ -96,7 +100,7 @@ class Validation(Callback):
             for (cb, x), r, m in zip(items, rms.tolist(), vmax.tolist()):
                 cb._last = (x.tobytes(), {"val_rms_m": r, "val_max_m": m, "param_err": float(judge.param_error(x)[0])})
 
-    def on_generation(self, algorithm: Algorithm, row: dict) -> None:
+    def on_generation(self, algorithm: Algorithm, row: Row) -> None:
         x = algorithm.current()[0]
         if x is None:  # no finite cost yet (the optimiser diverged): nothing to judge
             row.update(val_rms_mm=np.nan, val_max_mm=np.nan, param_err=np.nan)
@@ -137,7 +141,7 @@ class ConvergenceLog(Callback):
         self._buffer = io.StringIO() if self.buffered else None
         self._writer = csv.DictWriter(self._buffer or self._file, fieldnames=COLUMNS, extrasaction="ignore", restval="")
 
-    def on_generation(self, algorithm: Algorithm, row: dict) -> None:
+    def on_generation(self, algorithm: Algorithm, row: Row) -> None:
         if self._buffer is None:
             self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
             self._file.flush()
@@ -171,7 +175,7 @@ def _cell(v: object) -> str:
     return f'"{text.replace(chr(34), 2 * chr(34))}"' if any(c in text for c in ',"\r\n') else text
 
 
-def time_left(first: tuple[float, float], now: tuple[float, float]) -> float | None:
+def time_left(first: tuple[float, float | None], now: tuple[float, float | None]) -> float | None:
     """Seconds left from two (wall time s, fraction of the budget done) points, ``first`` and
     ``now``, at the pace between them; None before there is a pace. :class:`Progress` takes as
     ``first`` the end of the last generation in which numba compiled anything (or of the first
@@ -188,14 +192,14 @@ class Progress(Callback):
     The time left is estimated from the generations after the last that compiled code
     (:func:`time_left`)."""
 
-    def __init__(self, stream=None, every_s: float = 0.5):
+    def __init__(self, stream: IO[str] | None = None, every_s: float = 0.5):
         self.stream = stream or sys.stderr
         self.tty, self.every_s = self.stream.isatty(), every_s
         self._last, self._shown = -np.inf, None
-        self._first: tuple[float, float] | None = None
+        self._first: tuple[float, float | None] | None = None
         self._compiled = -1
 
-    def on_generation(self, algorithm: Algorithm, row: dict) -> None:
+    def on_generation(self, algorithm: Algorithm, row: Row) -> None:
         now = time.perf_counter()
         done = algorithm.fraction_done()
         if self._first is None or compiled.compilations() != self._compiled:  # the pace starts after compiling
@@ -227,15 +231,15 @@ class Checkpoint(Callback):
     last (runs evolved together: a batch's runs are short, their checkpoints a cost);
     ``before_save``: called before each save (a buffered :class:`ConvergenceLog`'s flush)."""
 
-    def __init__(self, path: str | Path, every: int, config: dict, choices: dict | None = None,
-                 inputs: dict | None = None, min_interval_s: float = 0.0, before_save: Callable[[], None] | None = None):  # fmt: skip
+    def __init__(self, path: str | Path, every: int, config: dict[str, Any], choices: dict[str, Any] | None = None,
+                 inputs: dict[str, str] | None = None, min_interval_s: float = 0.0, before_save: Callable[[], None] | None = None):  # fmt: skip
         self.path, self.every, self.config, self.choices = Path(path), every, config, choices or {}
         self.inputs = inputs or {}
         self.min_interval_s, self.before_save = min_interval_s, before_save
         self._saved_at = time.monotonic()
 
-    def on_generation(self, algorithm: Algorithm, row: dict) -> None:
-        self.last = algorithm.state()
+    def on_generation(self, algorithm: Algorithm, row: Row) -> None:
+        self.last: State = algorithm.state()
         due = self.every and algorithm.gen % self.every == 0 and time.monotonic() - self._saved_at >= self.min_interval_s
         if not algorithm.has_next() or due:
             self.save()

@@ -12,6 +12,7 @@ import json
 import os
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from zrp_ga.core.fileio import replace
 from zrp_ga.core.files import regular_file
 
 
-def save(path: str | Path, state: dict) -> None:
+def save(path: str | Path, state: dict[str, Any]) -> None:
     """Write ``state``: its numpy arrays as arrays, the rest (JSON-able) as JSON."""
     path = Path(path)
     arrays = {k: v for k, v in state.items() if isinstance(v, np.ndarray)}
@@ -38,12 +39,12 @@ def save(path: str | Path, state: dict) -> None:
         raise
 
 
-def load(path: str | Path) -> dict:
+def load(path: str | Path) -> dict[str, Any]:
     """The state :func:`save` wrote; ValueError (one line) if the file is missing or corrupt."""
     path = regular_file(path, "a checkpoint file", missing="no checkpoint there")
     try:
         with np.load(path, allow_pickle=False) as data:
-            state = json.loads(str(data["__json__"]))
+            state: dict[str, Any] = json.loads(str(data["__json__"]))
             state.update({k: data[k] for k in data.files if k != "__json__"})
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
         raise ValueError(f"{path}: not a readable checkpoint, truncated or corrupt ({type(exc).__name__}); "

@@ -34,7 +34,10 @@ import json
 import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 CONVERGENCE = "convergence.csv"
 SUMMARY = "summary.json"
@@ -103,7 +106,8 @@ def remove_temporary(out: Path) -> None:
 def status(out: Path) -> str | None:
     """The ``status`` in ``out/status.json``; None when there is none (or it cannot be read)."""
     try:
-        return json.loads((out / STATUS).read_text()).get("status")
+        state: str | None = json.loads((out / STATUS).read_text()).get("status")
+        return state
     except (OSError, ValueError, AttributeError):
         return None
 
@@ -114,8 +118,9 @@ def write_status(out: Path, state: str, error: str | None = None) -> None:
     records.write_json(out / STATUS, {"status": state} if error is None else {"status": state, "error": error})
 
 
-def read_summary(out: Path) -> dict:
-    return json.loads((out / SUMMARY).read_text())
+def read_summary(out: Path) -> dict[str, Any]:
+    summary: dict[str, Any] = json.loads((out / SUMMARY).read_text())
+    return summary
 
 
 def damage(out: Path) -> str | None:
@@ -159,7 +164,7 @@ class Sweep:
     subdir: str = ""
 
 
-def _append(path: Path, record: dict) -> None:
+def _append(path: Path, record: dict[str, Any]) -> None:
     line = json.dumps(record) + "\n"
     fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
     try:
@@ -181,7 +186,7 @@ def record(sweep: Sweep, state: str, error: str | None = None) -> None:
     })  # fmt: skip
 
 
-def _records(sweep: Path) -> list[dict]:
+def _records(sweep: Path) -> list[dict[str, Any]]:
     """The manifest's records, skipping a line a crash left unfinished."""
     out = []
     for line in (Path(sweep) / MANIFEST).read_text().splitlines():
@@ -194,13 +199,13 @@ def _records(sweep: Path) -> list[dict]:
     return out
 
 
-def job_states(sweep: str | Path) -> list[dict]:
+def job_states(sweep: str | Path) -> list[dict[str, Any]]:
     """Each job's last record, by job number."""
     last = {int(r["job"]): r for r in _records(Path(sweep))}
     return [{k: last[job].get(k) for k in COLUMNS} for job in sorted(last)]
 
 
-def read_manifest(sweep: str | Path):
+def read_manifest(sweep: str | Path) -> pd.DataFrame:
     """One row per job with its last state (a pandas DataFrame): job, overrides, dir, status, error, time."""
     import pandas as pd
 
@@ -251,7 +256,8 @@ def shared(sweep: Path | None, key: str, compute: Callable[[], dict[str, Any]], 
         return compute()
     path = sweep / SHARED / f"{what}-{_hash(key, 16)}.json"
     try:
-        return json.loads(path.read_text())
+        kept: dict[str, Any] = json.loads(path.read_text())
+        return kept
     except (OSError, ValueError):
         pass
     d = compute()

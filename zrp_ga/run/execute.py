@@ -18,6 +18,7 @@ from typing import Any
 
 from zrp_ga.core.schema import Config
 from zrp_ga.run import assembly
+from zrp_ga.run.assembly import Ran
 from zrp_ga.run.build import Prepared, build, prepare
 from zrp_ga.run.directory import Sweep
 from zrp_ga.run.shared import CACHE, Cache
@@ -26,7 +27,7 @@ log = logging.getLogger("zrp_ga")
 
 
 def run(cfg: Config, out: str | Path, progress: bool | None = None, overrides: Sequence[str] = (),
-        choices: dict | None = None) -> float:  # fmt: skip
+        choices: dict[str, Any] | None = None) -> float:  # fmt: skip
     """Check and run one calibration as configured, write its files into ``out`` (or, resuming,
     the run's own directory) and return the objective (``objective``: the final cost, or the
     final cost over the instance's floor). ``progress``: show the progress line (default:
@@ -35,12 +36,12 @@ def run(cfg: Config, out: str | Path, progress: bool | None = None, overrides: S
     return objective(run_prepared(p, p.cfg.progress if progress is None else progress))
 
 
-def objective(ran: tuple[Any, dict]) -> float:
+def objective(ran: Ran) -> float:
     """The objective of what :func:`run_prepared` returned."""
     return float(ran[1]["objective"])
 
 
-def run_prepared(p: Prepared, progress: bool, sweep: Sweep | None = None, cache: Cache = CACHE) -> tuple[Any, dict]:
+def run_prepared(p: Prepared, progress: bool, sweep: Sweep | None = None, cache: Cache = CACHE) -> Ran:
     """Run ``p`` in ``p.out`` (None: no files) with ``status.json`` telling where it is: running,
     then done, failed or interrupted (and the manifest's line for a ``sweep``'s job); the result
     and the summary (:func:`execute`)."""
@@ -59,7 +60,7 @@ def run_prepared(p: Prepared, progress: bool, sweep: Sweep | None = None, cache:
     return ran
 
 
-def execute(p: Prepared, progress: bool, sweep: Sweep | None = None, cache: Cache = CACHE) -> tuple[Any, dict]:
+def execute(p: Prepared, progress: bool, sweep: Sweep | None = None, cache: Cache = CACHE) -> Ran:
     """Seed, optimise with the callbacks, summarise; with ``p.out``, write the run's files there
     (a convergence log and checkpoints as it goes, the rest at the end). Returns the result and
     the summary."""

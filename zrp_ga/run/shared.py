@@ -13,7 +13,10 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from zrp_ga.problems import Task
 
 MAX_INSTANCES = 8
 
@@ -22,11 +25,11 @@ MAX_INSTANCES = 8
 class Cache:
     """The last few problem instances built, and each instance's identifiability and floor."""
 
-    instances: dict[str, Any] = dataclasses.field(default_factory=dict)  # key -> zrp_ga.problems.Task
-    diagnostics: dict[str, dict] = dataclasses.field(default_factory=dict)  # key -> summary.diagnostics' figures
-    floors: dict[str, dict] = dataclasses.field(default_factory=dict)  # key -> summary.floor's figures
+    instances: dict[str, Task] = dataclasses.field(default_factory=dict)  # key -> the problem instance
+    diagnostics: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)  # key -> summary.diagnostics' figures
+    floors: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)  # key -> summary.floor's figures
 
-    def instance(self, key: str, build: Callable[[], Any]) -> Any:
+    def instance(self, key: str, build: Callable[[], Task]) -> Task:
         """The instance of ``key``, built by ``build()`` the first time."""
         if key not in self.instances:
             self.instances[key] = build()

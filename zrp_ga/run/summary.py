@@ -26,6 +26,7 @@ and, for a Universal Robots arm, ``calibrated_robot_default_kinematics.yaml`` (u
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +34,7 @@ import numpy as np
 
 from zrp_ga.algorithms import Result
 from zrp_ga.core.errors import warn
-from zrp_ga.core.schema import Cost, Objective
+from zrp_ga.core.schema import Config, Cost, Objective
 from zrp_ga.io import records, robot_files
 from zrp_ga.model import error_model
 from zrp_ga.problems import Task
@@ -42,6 +43,8 @@ from zrp_ga.run import directory
 from zrp_ga.run.shared import Cache
 
 log = logging.getLogger("zrp_ga")
+
+Summary = dict[str, Any]  # summary.json's entries
 
 
 def model_rank(task: Task) -> int:
@@ -79,7 +82,7 @@ ROUND_OFF = directory.ROUND_OFF
 UNCERTAINTY, COVERAGE = "uncertainty.json", "coverage.json"
 
 
-def floor(task: Task, key: str | None = None, cache: Cache | None = None, sweep: Path | None = None) -> dict[str, float]:
+def floor(task: Task, key: str | None = None, cache: Cache | None = None, sweep: Path | None = None) -> dict[str, Any]:
     """The instance's floor: Levenberg-Marquardt's final cost from the nominal model (``cost``,
     as zrp-ga-report reads it; its evaluations ``lm_nevals`` and validation RMS ``lm_val_rms_mm``,
     the report's reference, too), and ``reference`` = max(floor, ROUND_OFF x nominal cost), the
@@ -93,7 +96,7 @@ def floor(task: Task, key: str | None = None, cache: Cache | None = None, sweep:
     return d
 
 
-def _lm_floor(task: Task) -> dict[str, float]:
+def _lm_floor(task: Task) -> dict[str, Any]:
     from zrp_ga.algorithms.lm import LM
 
     p = task.problem
@@ -106,7 +109,7 @@ def _lm_floor(task: Task) -> dict[str, float]:
             "lm_val_rms_mm": val_mm if np.isfinite(val_mm) else None}
 
 
-def objective(cfg, task: Task, written: dict, key: str, cache: Cache, sweep: Path | None) -> float:
+def objective(cfg: Config, task: Task, written: Summary, key: str, cache: Cache, sweep: Path | None) -> float:
     """What the run returns to a sweeper (``objective``): the final cost, or the final cost over
     the instance's floor's reference (:func:`floor`, then also in ``written`` as ``floor``)."""
     if cfg.objective is Objective.over_floor:
@@ -140,7 +143,7 @@ def _listed(names: list[str], mask: np.ndarray, k: int = 6) -> str:
 
 
 def warnings(task: Task, result: Result, nominal_cost: float, val: dict[str, float], returned: str,
-             reported: np.ndarray, notes: list[str] = ()) -> list[str]:  # fmt: skip
+             reported: np.ndarray, notes: Sequence[str] = ()) -> list[str]:  # fmt: skip
     """Whatever makes the result other than it seems: what the problem found while it was
     built, worse than the nominal model on the calibration or validation data (and what is
     returned then), genes held by their range bounds (:func:`on_bounds`; ``reported`` is the
@@ -170,7 +173,7 @@ def warnings(task: Task, result: Result, nominal_cost: float, val: dict[str, flo
     return out
 
 
-def judged(task: Task, result: Result) -> tuple[dict, np.ndarray]:
+def judged(task: Task, result: Result) -> tuple[dict[str, Any], np.ndarray]:
     """The reported genome and ``summary.json``'s entries that judge it, the assessment's
     among them (:func:`zrp_ga.problems.assessment.assess`: what the data identify, the
     uncertainty, the coverage, the outliers): final cost (the nominal arm's when it is returned instead),
@@ -213,8 +216,8 @@ def judged(task: Task, result: Result) -> tuple[dict, np.ndarray]:
     }, x
 
 
-def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wall_s: float,
-          choices: dict) -> tuple[dict, np.ndarray]:  # fmt: skip
+def build(task: Task, result: Result, cfg: Config, resolved: dict[str, Any], diagnostics: dict[str, Any], wall_s: float,
+          choices: dict[str, Any]) -> tuple[Summary, np.ndarray]:  # fmt: skip
     """``summary.json``'s content and the reported genome (:func:`judged`); ``choices``: the
     config groups' options."""
     j, x = judged(task, result)
@@ -252,7 +255,7 @@ def build(task: Task, result: Result, cfg, resolved: dict, diagnostics: dict, wa
     return summary, x
 
 
-def write(out: Path, task: Task, result: Result, summary: dict, x: np.ndarray) -> None:
+def write(out: Path, task: Task, result: Result, summary: Summary, x: np.ndarray) -> None:
     """The run's files after the optimisation; each warning also on the console."""
     p = task.problem
     if isinstance(task, SelfJudging):
@@ -317,7 +320,7 @@ def console(out: Path, job: tuple[int, str] | None = None) -> None:
         print(line)
 
 
-def uncertainty_line(s: dict) -> str:
+def uncertainty_line(s: Summary) -> str:
     """The one console line on how sure the result is: the predicted 1-sigma error at the
     calibration poses, the predicted against the measured validation RMS, the share of the
     validation poses outside the calibrated region, and the combinations left at nominal."""

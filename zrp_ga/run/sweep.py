@@ -17,18 +17,22 @@ import contextlib
 import dataclasses
 import logging
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
+from contextlib import AbstractContextManager
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
+from zrp_ga.algorithms import State
 from zrp_ga.core import schema
 from zrp_ga.core.schema import Config, ConfigError
 from zrp_ga.run import assembly, directory, execute, together
 from zrp_ga.run.build import Prepared, build, check_inputs, instance_key
 from zrp_ga.run.directory import Sweep
 from zrp_ga.run.shared import CACHE, Cache
+from zrp_ga.run.together import Within
 
 log = logging.getLogger("zrp_ga")
+T = TypeVar("T")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,34 +69,37 @@ def batch_key(cfg: Config) -> str | None:
 
 
 def sweep_batch(jobs: Sequence[SweepJob], cache: Cache = CACHE,
-                around: Callable[[int], contextlib.AbstractContextManager] | None = None) -> list[float | Exception]:  # fmt: skip
+                around: Within | None = None) -> list[float | Exception]:  # fmt: skip
     """Run jobs of a sweep and return per job its objective or the exception it failed with,
     each job recorded in the manifest as :func:`sweep_job` records it. GA jobs with the same
     :func:`batch_key` are evolved together (:func:`zrp_ga.run.together.run_group`), the others
     run one after another. ``around(k)``: a context entered around everything done for job
     ``k`` alone (its log file, Hydra's view of the job), by the launcher. KeyboardInterrupt is
     raised after every job recorded its state."""
-    out: list[Any] = [None] * len(jobs)
+    out: list[float | Exception | None] = [None] * len(jobs)
 
-    def within(k: int) -> contextlib.AbstractContextManager:
+    def within(k: int) -> AbstractContextManager[Any]:
         return around(k) if around else contextlib.nullcontext()
 
     for group in _groups(jobs, out, within, cache).values():
         if len(group) == 1:
             k, p, sweep = group[0]
             with within(k):
-                out[k] = _caught(execute.run_prepared, p, False, sweep, cache)
-                out[k] = out[k] if isinstance(out[k], Exception) else execute.objective(out[k])
+                ran = _caught(execute.run_prepared, p, False, sweep, cache)
+                out[k] = ran if isinstance(ran, Exception) else execute.objective(ran)
         else:
             for (k, _, _), value in zip(group, together.run_group(group, cache, within)):
                 out[k] = value if isinstance(value, Exception) else execute.objective(value)
-    return out
+    ended = [v for v in out if v is not None]
+    assert len(ended) == len(jobs)  # every job ended with its objective or its error
+    return ended
 
 
-def _groups(jobs: Sequence[SweepJob], out: list, within: Callable, cache: Cache) -> dict[Any, list[tuple[int, Prepared, Sweep]]]:
+def _groups(jobs: Sequence[SweepJob], out: list[float | Exception | None], within: Within,
+            cache: Cache) -> dict[Hashable, list[tuple[int, Prepared, Sweep]]]:  # fmt: skip
     """The jobs prepared, by what can be evolved together (a job that finished before, or failed
     before its run, put into ``out`` and recorded)."""
-    ready: dict[Any, list[tuple[int, Prepared, Sweep]]] = {}
+    ready: dict[Hashable, list[tuple[int, Prepared, Sweep]]] = {}
     for k, job in enumerate(jobs):
         with within(k):
             got = _attempt(job.sweep, _job, job, cache)
@@ -106,7 +113,7 @@ def _groups(jobs: Sequence[SweepJob], out: list, within: Callable, cache: Cache)
     return ready
 
 
-def _attempt(sweep: Sweep, work: Callable[..., Any], *args: Any) -> Any:
+def _attempt(sweep: Sweep, work: Callable[..., T], *args: Any) -> T | Exception:
     """``work(*args)``, or the exception it raised, recorded in the sweep's manifest; Ctrl-C
     recorded, and raised."""
     try:
@@ -118,7 +125,7 @@ def _attempt(sweep: Sweep, work: Callable[..., Any], *args: Any) -> Any:
         return exc
 
 
-def _caught(work: Callable[..., Any], *args: Any) -> Any:
+def _caught(work: Callable[..., T], *args: Any) -> T | Exception:
     """``work(*args)``, or the exception it raised (which ``work`` recorded); Ctrl-C raised."""
     try:
         return work(*args)
@@ -150,7 +157,7 @@ def _job(job: SweepJob, cache: Cache) -> float | Prepared:
     return p
 
 
-def _checkpoint(cfg: Config, out: Path) -> tuple[dict | None, dict | None]:
+def _checkpoint(cfg: Config, out: Path) -> tuple[State | None, dict[str, str] | None]:
     """The state of the checkpoint a killed run of this job left in ``out`` (None: none, or
     unreadable: the run starts again) and the inputs it recorded."""
     from zrp_ga.run import checkpoint
@@ -168,7 +175,7 @@ def _checkpoint(cfg: Config, out: Path) -> tuple[dict | None, dict | None]:
     return state, state.pop("inputs", None)
 
 
-def _same_run(cfg: Config, stored: dict | None, out: Path) -> None:
+def _same_run(cfg: Config, stored: dict[str, Any] | None, out: Path) -> None:
     """Refuse to continue the run in ``out`` when its config (``stored``, from its summary or
     checkpoint) is not ``cfg`` (the progress line and resume setting aside)."""
 

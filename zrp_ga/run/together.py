@@ -12,9 +12,12 @@ from __future__ import annotations
 import contextlib
 import logging
 from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
 from typing import Any
 
+from zrp_ga.algorithms import Result
 from zrp_ga.run import assembly
+from zrp_ga.run.assembly import Ran, Start
 from zrp_ga.run.build import Prepared
 from zrp_ga.run.directory import Sweep
 from zrp_ga.run.shared import CACHE, Cache
@@ -22,9 +25,10 @@ from zrp_ga.run.shared import CACHE, Cache
 log = logging.getLogger("zrp_ga")
 
 Member = tuple[int, Prepared, Sweep | None]  # a run of a group: its number (for ``within``), the run, its sweep job
+Within = Callable[[int], AbstractContextManager[Any]]  # a context around what is done for run k alone
 
 
-def run_together(prepared: Sequence[Prepared], cache: Cache = CACHE) -> list[tuple[Any, dict] | Exception]:
+def run_together(prepared: Sequence[Prepared], cache: Cache = CACHE) -> list[Ran | Exception]:
     """Run prepared GA runs on one problem instance (the same ``task``) evolved together, each
     writing into its ``out`` (None: nothing written) what it writes alone; per run what
     :func:`zrp_ga.run.execute.execute` returns (the result and the summary), or the exception
@@ -35,13 +39,13 @@ def run_together(prepared: Sequence[Prepared], cache: Cache = CACHE) -> list[tup
 
 
 def run_group(group: Sequence[Member], cache: Cache = CACHE,
-              within: Callable[[int], contextlib.AbstractContextManager] | None = None) -> list[Any]:  # fmt: skip
+              within: Within | None = None) -> list[Ran | Exception]:  # fmt: skip
     """Evolve the runs of ``group`` together, each in its own directory if it has one; per run
     its result and summary, or the exception it failed with. ``within(k)``: a context entered
     around what is done for run ``k`` alone (the launcher's view of the job). KeyboardInterrupt
     after every unfinished run saved its checkpoint and recorded it."""
     within = within or (lambda k: contextlib.nullcontext())
-    out: list[Any] = [None] * len(group)
+    out: list[Ran | Exception | None] = [None] * len(group)
     with contextlib.ExitStack() as held:
         live, starts = _begin(group, out, held, within)
         if live:
@@ -52,7 +56,9 @@ def run_group(group: Sequence[Member], cache: Cache = CACHE,
             with within(k):
                 log.error("%s: %s: %s", p.out or f"run {k}", type(value).__name__, value)
                 assembly.stopped(p, sweep, value)
-    return [v.error if isinstance(v, _NotHeld) else v for v in out]
+    ended = [v.error if isinstance(v, _NotHeld) else v for v in out if v is not None]
+    assert len(ended) == len(group)  # every run ended with its result and summary, or its error
+    return ended
 
 
 class _NotHeld(Exception):
@@ -63,11 +69,13 @@ class _NotHeld(Exception):
         self.error = error
 
 
-def _begin(group: Sequence[Member], out: list, held: contextlib.ExitStack, within: Callable) -> tuple[list[int], list]:
+def _begin(group: Sequence[Member], out: list[Ran | Exception | None], held: contextlib.ExitStack[bool | None],
+           within: Within) -> tuple[list[int], list[Start]]:  # fmt: skip
     """Each run's directory held (in ``held``) and its start (:func:`zrp_ga.run.assembly.start`);
     the runs that could start, and their starts."""
-    live, starts = [], []
-    hashed: dict[str, dict] = {}  # instance key -> the hashes of its robot and data files
+    live: list[int] = []
+    starts: list[Start] = []
+    hashed: dict[str, dict[str, str]] = {}  # instance key -> the hashes of its robot and data files
     for i, (k, p, sweep) in enumerate(group):
         with within(k):
             try:
@@ -85,14 +93,15 @@ def _begin(group: Sequence[Member], out: list, held: contextlib.ExitStack, withi
     return live, starts
 
 
-def _evolve(group: Sequence[Member], live: list[int], starts: list, out: list, cache: Cache, within: Callable) -> None:
+def _evolve(group: Sequence[Member], live: list[int], starts: list[Start], out: list[Ran | Exception | None], cache: Cache,
+            within: Within) -> None:  # fmt: skip
     """Run the ``live`` runs of ``group`` together (their ``starts``), each ended as it
     finishes (:func:`zrp_ga.run.assembly.finish`); the results and failures into ``out``."""
     from threadpoolctl import threadpool_limits
 
-    figures: list[dict] = []
+    figures: list[dict[str, Any]] = []
 
-    def finished(j: int, result: Any) -> None:  # run live[j] ended: its summary, files and status
+    def finished(j: int, result: Result) -> None:  # run live[j] ended: its summary, files and status
         i = live[j]
         k, p, sweep = group[i]
         with within(k):
@@ -108,9 +117,9 @@ def _evolve(group: Sequence[Member], live: list[int], starts: list, out: list, c
                 a.random_state = s.random_state
             ended = type(algorithms[0]).run_together(algorithms, runs[0][1].task.problem, [s.rng for s in starts],
                                                      [s.callbacks for s in starts], [p.state for _, p, _ in runs], finished)  # fmt: skip
-        for j, i in enumerate(live):
-            if isinstance(ended[j], Exception):
-                out[i] = ended[j]
+        for i, end in zip(live, ended):
+            if isinstance(end, Exception):
+                out[i] = end
     except BaseException as exc:  # Ctrl-C, or a failure shared by the runs: every unfinished run says so
         for i in live:
             if out[i] is None:
