@@ -18,11 +18,12 @@ from __future__ import annotations
 import copy
 import dataclasses
 import difflib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias, overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from zrp_ga import config
 from zrp_ga.algorithms import Result
@@ -31,6 +32,17 @@ from zrp_ga.core.schema import ConfigError, MeasuredConf
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.problems import Task
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure, SubFigure
+
+    from zrp_ga.model.uncertainty import Uncertainty
+
+    # Measurements in memory or in a file, as calibrate() takes them (its docstring): a file, a DataFrame, a
+    # tuple (q, positions[, orientations]) of arrays, a dict of arrays or of columns, or Measurements.
+    MeasurementData: TypeAlias = Measurements | str | Path | pd.DataFrame | tuple[ArrayLike, ...] | list[ArrayLike] | Mapping[str, Any]
 
 
 @dataclasses.dataclass
@@ -41,16 +53,16 @@ class Calibration:
 
     robot: ZRPRobot
     result: Result
-    summary: dict
+    summary: dict[str, Any]  # summary.json's entries
     task: Task
 
     @property
     def x(self) -> np.ndarray:
         """The returned genome (the problem's genes; zero when the nominal arm was returned)."""
-        return np.array([self.summary["best_genome"][k] for k in self.task.problem.names])
+        return _genome(self.summary, self.task)
 
     @property
-    def uncertainty(self):
+    def uncertainty(self) -> Uncertainty | None:
         """The calibration's :class:`zrp_ga.model.uncertainty.Uncertainty` (the covariance of
         the identified combinations and the prior of what was left at nominal), None when the
         nominal arm was returned or the data leave no degrees of freedom for the noise."""
@@ -60,7 +72,7 @@ class Calibration:
 
         return uncertainty(self.task.problem, self.x, self.task.setup)
 
-    def predict_error(self, q, tool: int = 0) -> dict[str, np.ndarray]:
+    def predict_error(self, q: ArrayLike, tool: int = 0) -> dict[str, np.ndarray]:
         """Predicted 1-sigma errors of the calibrated arm at joint values q (M, n) (the model's
         units: rad, m; measured data: as read from the file, converted), each (M,):
         ``position_mm`` (the identified combinations' covariance and the prior of those left at
@@ -89,11 +101,11 @@ class Calibration:
                 "outside": where.outside, "distance_ratio": where.ratio}  # fmt: skip
 
     @property
-    def history(self):
+    def history(self) -> pd.DataFrame:
         """One row per generation (pandas DataFrame), the columns of ``convergence.csv``."""
         return self.result.history
 
-    def plot(self, ax=None):
+    def plot(self, ax: Axes | None = None) -> Figure | SubFigure:
         """The convergence curve (best cost per evaluation) on ``ax``, or on a new figure that is
         returned without being shown (``matplotlib.figure.Figure``: no backend is chosen)."""
         if ax is None:
@@ -106,6 +118,11 @@ class Calibration:
         ax.set_ylabel("best cost")
         ax.set_title(self.summary["instance"], fontsize=9)
         return ax.figure
+
+
+def _genome(summary: dict[str, Any], task: Task) -> np.ndarray:
+    """The genome ``summary.json`` returns (its ``best_genome``), in the order of ``task``'s genes."""
+    return np.array([summary["best_genome"][k] for k in task.problem.names])
 
 
 def _overrides(algorithm: str, seed: int, settings: dict[str, Any]) -> list[str]:
@@ -153,9 +170,9 @@ def _check_keys(settings: dict[str, Any], cfg: dict[str, Any], where: str = "") 
 
 def calibrate(
     robot: ZRPRobot | str | Path,
-    data: Measurements | str | Path | None = None,
+    data: MeasurementData | None = None,
     *,
-    validation: Measurements | str | Path | None = None,
+    validation: MeasurementData | None = None,
     algorithm: str = "ga",
     seed: int | Sequence[int] = 0,
     out: str | Path | None = None,
@@ -209,7 +226,8 @@ def calibrate(
         return _calibrate(robot, data, validation, algorithm, seeds, outs, progress, settings)
 
 
-def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, progress: bool, settings: dict) -> list[Calibration]:
+def _calibrate(robot: ZRPRobot | str | Path, data: MeasurementData | None, validation: MeasurementData | None, algorithm: str,
+               seeds: list[int], outs: Sequence[str | Path] | None, progress: bool, settings: dict[str, Any]) -> list[Calibration]:  # fmt: skip
     from zrp_ga.io import presets
     from zrp_ga.problems import measured
     from zrp_ga.run import budget, build, execute
@@ -243,28 +261,31 @@ def _calibrate(robot, data, validation, algorithm: str, seeds: list[int], outs, 
     together = len(prepared) > 1 and task is not None and all(
         p.algorithm.checkpointable and not p.algorithm.draws_from_random() for p in prepared)  # the GA on one instance
     if together:
-        ran = run_together(prepared, cache)
-        failed = [r for r in ran if isinstance(r, Exception)]
+        ended = run_together(prepared, cache)
+        failed = [r for r in ended if isinstance(r, Exception)]
         if failed:
             raise failed[0]
+        ran = [r for r in ended if not isinstance(r, Exception)]
     else:
         ran = [execute.execute(p, progress, cache=cache) if p.out is None else execute.run_prepared(p, progress, cache=cache)
                for p in prepared]  # fmt: skip
     out = []
     for p, (result, summary) in zip(prepared, ran):
-        cal = Calibration(None, result, summary, p.task)
-        cal.robot = p.task.calibrated_robot(cal.x)
-        out.append(cal)
+        out.append(Calibration(p.task.calibrated_robot(_genome(summary, p.task)), result, summary, p.task))
     return out
 
 
-def _robot_source(robot: str | Path) -> dict:
+def _robot_source(robot: str | Path) -> dict[str, str]:
     from zrp_ga.io import presets
 
     return {"name": str(robot)} if str(robot) in presets.names() else {"file": str(robot)}
 
 
-def _measurements(data, robot: ZRPRobot, c: MeasuredConf, what: str) -> Measurements | None:
+@overload
+def _measurements(data: MeasurementData, robot: ZRPRobot, c: MeasuredConf, what: str) -> Measurements: ...
+@overload
+def _measurements(data: None, robot: ZRPRobot, c: MeasuredConf, what: str) -> None: ...
+def _measurements(data: MeasurementData | None, robot: ZRPRobot, c: MeasuredConf, what: str) -> Measurements | None:
     """``data`` read, or checked and converted as a file is (units from ``problem.length_unit``
     and ``problem.angle_unit``, ``auto`` detected), whatever form it takes."""
     if data is None:
@@ -282,7 +303,7 @@ def _measurements(data, robot: ZRPRobot, c: MeasuredConf, what: str) -> Measurem
     return m if rotations is None else dataclasses.replace(m, R=rotations[m.lines])
 
 
-def _table(data, what: str):
+def _table(data: MeasurementData, what: str) -> tuple[pd.DataFrame, np.ndarray | None]:
     """The zrp CSV format's table of in-memory ``data`` (a DataFrame, Measurements, a tuple
     ``(q, positions[, orientations])`` or a dict of arrays or of columns), and its rotation
     matrices when given as such (they have no unit)."""
@@ -317,7 +338,8 @@ def _table(data, what: str):
                     f"of arrays, a dict of arrays or Measurements; got {type(data).__name__}")  # fmt: skip
 
 
-def _frame(what: str, q, p, o=None, std=None, tool=None):
+def _frame(what: str, q: ArrayLike, p: ArrayLike, o: ArrayLike | None = None, std: ArrayLike | None = None,
+           tool: ArrayLike | None = None) -> pd.DataFrame:  # fmt: skip
     """Arrays as the zrp CSV format's columns (q1..qn, x, y, z, rx, ry, rz, sx, sy, sz, tool)."""
     import pandas as pd
 
@@ -341,17 +363,17 @@ def _frame(what: str, q, p, o=None, std=None, tool=None):
     return pd.DataFrame(cols)
 
 
-def _array(what: str, name: str, a, ndim: int) -> np.ndarray:
+def _array(what: str, name: str, a: ArrayLike, ndim: int) -> np.ndarray:
     try:
-        a = np.asarray(a, dtype=float)
+        array = np.asarray(a, dtype=float)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{what}: {name} is not an array of numbers ({exc})") from None
-    if a.ndim != ndim:
-        raise ValueError(f"{what}: {name} must be a {ndim}-D array (one row per measurement), got shape {a.shape}")
-    return a
+    if array.ndim != ndim:
+        raise ValueError(f"{what}: {name} must be a {ndim}-D array (one row per measurement), got shape {array.shape}")
+    return array
 
 
-def _rotations(what: str, o, M: int) -> np.ndarray | None:
+def _rotations(what: str, o: ArrayLike | None, M: int) -> np.ndarray | None:
     """Orientations given as rotation matrices (M, 3, 3), one per measurement; None for angles
     (M, 3) or none."""
     if o is None or np.ndim(o) == 2:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,6 +27,9 @@ from zrp_ga.model.cost import CalibrationProblem
 from zrp_ga.model.layout import Layout, dh_mask, fixed_summary, mask
 from zrp_ga.model.metrics import Judge
 from zrp_ga.model.robot import ZRPRobot
+
+if TYPE_CHECKING:
+    from zrp_ga.model.error_model import IdentifiabilityReport
 
 Array = NDArray[np.float64]
 
@@ -65,7 +68,7 @@ class Task:
         configured): what the identifiability report covers."""
         return self.problem.layout if self.setup is None else self.setup.layout
 
-    def identifiability(self):
+    def identifiability(self) -> IdentifiabilityReport:
         """The identifiability report (:func:`zrp_ga.model.error_model.identifiability`) of the
         calibration poses at the nominal arm, over :attr:`layout`'s parameters."""
         return (self.problem if self.setup is None else self.setup.problem).identifiability()

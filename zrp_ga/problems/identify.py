@@ -27,7 +27,7 @@ The expected errors ``prior`` are each gene's range over ``search_scale``.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,6 +38,9 @@ from zrp_ga.model import subspace as sub
 from zrp_ga.model.cost import CalibrationProblem
 from zrp_ga.problems.least_squares import levenberg_marquardt
 from zrp_ga.problems.robust import RobustProblem
+
+if TYPE_CHECKING:
+    from zrp_ga.model.uncertainty import Uncertainty
 
 Array = NDArray[np.float64]
 OUTLIER_ALPHA = 0.01  # chance of naming any point of a clean data set
@@ -286,7 +289,7 @@ def _change(before: CalibrationProblem, x0: Array, after: CalibrationProblem, x1
             "model_moved_mm": {"max": float(moved.max() * 1e3), "rms": rms(moved)}}  # fmt: skip
 
 
-def uncertainty(problem: CalibrationProblem, z: Array, setup: Setup | None):
+def uncertainty(problem: CalibrationProblem, z: Array, setup: Setup | None) -> Uncertainty | None:
     """The calibration's :class:`zrp_ga.model.uncertainty.Uncertainty` at its genome ``z``
     (``problem``'s): the covariance of the identified combinations from the Jacobian at z and
     the noise (the instrument's, else this fit's residual: robust for a robust cost), and the

@@ -57,7 +57,7 @@ def prepare(cfg: Config, out: Path | None, overrides: Sequence[str] = (), choice
     from the config's files (then with a ``cache`` of its own: the key does not describe it)."""
     state = None
     if cfg.resume:
-        out, state, cfg = _resume(cfg, overrides)
+        out, state, cfg = _resume(cfg.resume, overrides)
         choices = state.pop("choices", None) or {}
         recorded = state.pop("inputs", None)
         _not_in_use(out)  # before any work: building the problem and hashing its files
@@ -147,12 +147,12 @@ def check_writable(out: Path) -> None:
             return
 
 
-def _resume(cfg: Config, overrides: Sequence[str]) -> tuple[Path, State, Config]:
+def _resume(resume: str, overrides: Sequence[str]) -> tuple[Path, State, Config]:
     """The run directory, checkpoint state and config of ``resume=DIR``; the other settings of
     the command line are refused (the run continues with its own)."""
     from zrp_ga.run import checkpoint
 
-    out = Path(cfg.resume).expanduser()
+    out = Path(resume).expanduser()
     if not out.is_dir():
         raise ConfigError(f"resume: {out} is not a run directory")
     others = [o for o in overrides if not o.lstrip("+~").startswith(RESUME_KEEPS)]

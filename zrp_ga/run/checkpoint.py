@@ -23,7 +23,7 @@ from zrp_ga.core.files import regular_file
 def save(path: str | Path, state: dict[str, Any]) -> None:
     """Write ``state``: its numpy arrays as arrays, the rest (JSON-able) as JSON."""
     path = Path(path)
-    arrays = {k: v for k, v in state.items() if isinstance(v, np.ndarray)}
+    arrays: dict[str, Any] = {k: v for k, v in state.items() if isinstance(v, np.ndarray)}  # Any: to numpy's stubs, ** might hold allow_pickle
     rest = {k: v for k, v in state.items() if not isinstance(v, np.ndarray)}
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:

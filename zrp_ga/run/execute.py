@@ -97,6 +97,8 @@ def warm_up(cfg: Config, cache: Cache = CACHE) -> None:
             p.algorithm.initialize()
             if p.algorithm.has_next():
                 p.algorithm.step()
-            p.task.judge(p.algorithm.current()[0])
+            x = p.algorithm.current()[0]
+            if x is not None:
+                p.task.judge(x)
     except Exception as exc:
         log.debug("warm-up: %s", exc)

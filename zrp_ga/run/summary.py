@@ -114,7 +114,7 @@ def objective(cfg: Config, task: Task, written: Summary, key: str, cache: Cache,
     the instance's floor's reference (:func:`floor`, then also in ``written`` as ``floor``)."""
     if cfg.objective is Objective.over_floor:
         written["floor"] = floor(task, key, cache, sweep)
-        return float(written["final_cost"]) / written["floor"]["reference"]
+        return float(written["final_cost"]) / float(written["floor"]["reference"])
     return float(written["final_cost"])
 
 
@@ -224,7 +224,7 @@ def build(task: Task, result: Result, cfg: Config, resolved: dict[str, Any], dia
     initial = result.initial_costs[np.isfinite(result.initial_costs)]
     initial_best = float(initial.min()) if initial.size else float("nan")
     robot = task.robot
-    summary = {
+    summary: Summary = {
         "instance": task.name,
         "algorithm": resolved["algorithm"]["_target_"].rsplit(".", 1)[-1].lower(),
         "choices": dict(choices),
