@@ -7,7 +7,7 @@ registers the launcher itself where discovery misses it (an editable install und
 
 from dataclasses import dataclass
 from enum import Enum
-from typing import Optional
+from typing import Any, Optional
 
 from hydra.core.config_store import ConfigStore
 
@@ -64,7 +64,7 @@ def _store() -> None:
     import inspect
 
     cs = ConfigStore.instance()
-    replace = {"replace": True} if "replace" in inspect.signature(cs.store).parameters else {}  # hydra-core 1.4
+    replace: dict[str, Any] = {"replace": True} if "replace" in inspect.signature(cs.store).parameters else {}  # hydra-core 1.4
     cs.store(group="hydra/launcher", name="zrp_ga", node=ZrpGaLauncherConf, provider="zrp_ga", **replace)
 
 

@@ -15,6 +15,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from hydra.conf import HydraConf
 from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from hydra.types import RunMode
@@ -71,7 +72,7 @@ def take_prepared(out: Path) -> Any:
     return p
 
 
-def _ours(hydra: DictConfig) -> bool:
+def _ours(hydra: DictConfig | HydraConf) -> bool:
     """zrp_ga's launcher writes the manifest's table itself (a worker process runs many jobs)."""
     return str(hydra.launcher.get("_target_", "")).startswith("hydra_plugins.zrp_ga_launcher.")
 

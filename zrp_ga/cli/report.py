@@ -5,13 +5,14 @@ matplotlib are imported, so that a mistyped path is reported at once."""
 from __future__ import annotations
 
 import argparse
+from typing import NoReturn
 
 from zrp_ga.report.common import LEVELS, ROUND_OFF, ReportError
 from zrp_ga.report.write import FORMATS, console, write_report
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, like every other error of the command
+    def error(self, message: str) -> NoReturn:  # one line, like every other error of the command
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 

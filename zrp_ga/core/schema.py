@@ -539,7 +539,7 @@ def _conversion(kind: Any) -> Convert:
         nullable = type(None) in typing.get_args(kind)
         (inner,) = [_converter(k) for k in typing.get_args(kind) if k is not type(None)]
         return lambda v, key: None if v is None and nullable else inner(v, key)
-    if dataclasses.is_dataclass(kind):
+    if isinstance(kind, type) and dataclasses.is_dataclass(kind):
         return lambda v, key: _typed(kind, v, key)
     if isinstance(kind, type) and issubclass(kind, enum.Enum):
         return lambda v, key: _enum(kind, v, key)

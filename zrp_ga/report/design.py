@@ -127,7 +127,7 @@ def _swept(tokens: list[tuple[str, ...]], by_config: set[str]) -> list[str]:
     return out
 
 
-def commands(runs: list[Run], report_dir: Path) -> list[dict[str, str]]:
+def commands(runs: list[Run], report_dir: Path) -> list[dict[str, Any]]:
     """The commands that made the runs, one per sweep (or single run), from Hydra's records:
     {command (its paths relative to the folder it ran in), where (that folder, relative to
     ``report_dir``), runs}; runs made without Hydra (the API) are counted under ``command`` ""."""

@@ -97,7 +97,7 @@ def configurations(runs: list[Run]) -> tuple[list[str], dict[str, dict[str, str]
     overridden = {k for r in runs for k in r.overrides}
     leaves = sorted({k for p in parts.values() for k in p if k not in GROUPS}, key=lambda k: (k not in overridden, k))
     kept: list[str] = []
-    classes = {i: () for i in parts}
+    classes: dict[Any, tuple[Any, ...]] = {i: () for i in parts}
     for key in list(GROUPS) + leaves:
         split = {i: classes[i] + (parts[i].get(key),) for i in parts}
         if len(set(split.values())) > len(set(classes.values())):

@@ -11,9 +11,9 @@ import contextlib
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from zrp_ga.report.common import LEVELS, ROUND_OFF, ReportError, markdown
 from zrp_ga.run import directory
@@ -181,7 +181,7 @@ def _paper_tables(run: Run, stage: Path) -> list[str]:
     return missing
 
 
-def write_report(paths: list[str | Path], out: str | Path | None = None, target: float | None = None, only: list[str] = (),
+def write_report(paths: list[str | Path], out: str | Path | None = None, target: float | None = None, only: Sequence[str] = (),
                  levels: tuple[float, ...] = LEVELS, budgets: tuple[int, ...] | None = None,
                  round_off: float = ROUND_OFF, ioh: str | Path | None = None,
                  formats: tuple[str, ...] = FORMATS, style: str = "paper", command: str | None = None,
@@ -231,7 +231,8 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
         t["left_out"], t["notes"] = pd.DataFrame([(os.path.relpath(p, where), why) for p, why in left], columns=["run", "reason"]), []
         t["left_as_found"] = left
         _write_tables(t, stage)
-        figs, shown = [], []
+        figs: list[dict[str, Any]] = []
+        shown: list[str] = []
         if formats:
             figs, shown = drawing.draw(runs, t, stage, tuple(formats), rule, style)
         if latex:
