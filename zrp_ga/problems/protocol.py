@@ -38,12 +38,23 @@ class Identifiable(Protocol):
     def identifiability(self) -> IdentifiabilityReport: ...
 
 
+class Found(Protocol):
+    """What an optimiser found, as a task judges it (:class:`zrp_ga.algorithms.Result` has it):
+    the best genome (None: no genome had a finite cost) and its cost."""
+
+    @property
+    def x(self) -> Array | None: ...
+
+    @property
+    def cost(self) -> float: ...
+
+
 @runtime_checkable
 class SelfJudging(Protocol):
     """A task (:class:`zrp_ga.problems.Task`) whose genomes are not parameter errors judges its
     own result: ``judged(result) -> (summary entries, reported genome)`` and writes its own
     ``best_params.csv`` rows, ``params_table(x)``; it has no calibration floor."""
 
-    def judged(self, result: Any) -> tuple[dict[str, Any], Array]: ...
+    def judged(self, result: Found) -> tuple[dict[str, Any], NDArray[Any]]: ...
 
     def params_table(self, x: ArrayLike) -> list[dict[str, Any]]: ...

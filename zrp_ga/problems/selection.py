@@ -41,7 +41,7 @@ from zrp_ga.operators import subset
 from zrp_ga.problems import Task, half_ranges, masked
 from zrp_ga.problems.least_squares import levenberg_marquardt
 from zrp_ga.problems.measured import MeasuredTask, file_size, from_measurements, read_sets
-from zrp_ga.problems.protocol import Identifiable, SelfJudging
+from zrp_ga.problems.protocol import Found, Identifiable, SelfJudging
 from zrp_ga.problems.size import EVAL_S, FLOAT, ProblemSize, calibration
 
 Array = NDArray[np.float64]
@@ -216,7 +216,7 @@ class SelectionTask(Task, SelfJudging):
         j = self.judgement(x)
         return j.task.export(j.x)
 
-    def judged(self, result) -> tuple[dict[str, Any], NDArray[np.intp]]:
+    def judged(self, result: Found) -> tuple[dict[str, Any], NDArray[np.intp]]:
         """``summary.json``'s judgement of the best subset (see :func:`zrp_ga.run.summary.judged`)."""
         x = self.chosen(result.x)
         j = self.judgement(x)
