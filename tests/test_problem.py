@@ -179,6 +179,23 @@ def test_the_algorithms_run_a_problem_with_the_required_part_only():
     assert search.nevals == 50 and np.all(np.abs(search.initial_x) <= 1.0)
 
 
+def test_a_search_with_no_finite_cost_returns_no_genome():
+    """Every genome's cost NaN (the model breaks everywhere): the GA and random search end with
+    x None and cost inf (the run's summary then says the optimiser diverged), not an error."""
+    from zrp_ga import config
+    from zrp_ga.algorithms.random_search import RandomSearch
+    from zrp_ga.core import targets
+
+    class Broken(Sphere):
+        def costs(self, X):
+            return np.full(len(np.atleast_2d(X)), np.nan)
+
+    ga = targets.create(config.load(["refine=none", "population.mu=6", "population.lambda_=6", "population.generations=2"]).algorithm,
+                        "algorithm")  # fmt: skip
+    for result in (ga.run(Broken(), np.random.default_rng(0)), RandomSearch(samples=20, batch=10).run(Broken(), np.random.default_rng(0))):
+        assert result.x is None and result.cost == np.inf
+
+
 def test_least_squares_and_the_step_need_a_jacobian():
     from zrp_ga import config
     from zrp_ga.algorithms.lm import LM
