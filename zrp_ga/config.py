@@ -87,7 +87,7 @@ def resolved(cfg: DictConfig) -> dict:
         if isinstance(o, str) and "${" in o:
             path = _NODE.fullmatch(o)
             target = _at(raw, path[1]) if path and path[1] not in seen else None
-            if not isinstance(target, (dict, list)):
+            if path is None or not isinstance(target, (dict, list)):
                 raise _Unresolved
             return filled(target, (*seen, path[1]))
         return o

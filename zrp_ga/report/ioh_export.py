@@ -23,6 +23,7 @@ import json
 import math
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -58,7 +59,7 @@ def lines(run: Run) -> list[str]:
 def instance_ids(runs: list[Run]) -> list[int]:
     """Each run's IOHprofiler instance id: its seed when every run has a distinct non-negative
     integer seed, else 1, 2, ... in the runs' order."""
-    seeds = [r.summary.get("seed") for r in runs]
+    seeds: list[Any] = [r.summary.get("seed") for r in runs]
     if all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds) and len(set(seeds)) == len(seeds):
         return seeds
     return list(range(1, len(runs) + 1))

@@ -83,7 +83,8 @@ def _versions() -> dict[str, str]:
 def _run_versions(runs_summaries: list[dict]) -> pd.DataFrame:
     seen: dict[tuple, int] = {}
     for s in runs_summaries:
-        v = s.get("versions") if isinstance(s.get("versions"), dict) else {}
+        v = s.get("versions")
+        v = v if isinstance(v, dict) else {}
         key = tuple(sorted((str(k), str(x)) for k, x in v.items()))
         seen[key] = seen.get(key, 0) + 1
     rows = [dict(runs=n, **dict(k)) for k, n in seen.items() if k]
