@@ -5,6 +5,7 @@ values the model only knows up to joint noise, with optional measurement noise."
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -91,8 +92,8 @@ def simulate(
     and ``n_validation`` validation poses at random configurations (:func:`measure`), drawn in
     that order from ``rng``. The validation poses never enter the cost."""
     truth = true_robot(nominal, layout, rng, axis_error, body_error)
-    noise = dict(joint_noise=joint_noise, position_noise=position_noise, orientation_noise=orientation_noise,
-                 position_only=position_only)  # fmt: skip
+    noise: dict[str, Any] = dict(joint_noise=joint_noise, position_noise=position_noise, orientation_noise=orientation_noise,
+                                 position_only=position_only)  # fmt: skip
     calibration = measure(truth, random_joints(nominal, n_poses, rng), rng, **noise)
     validation = measure(truth, random_joints(nominal, n_validation, rng), rng, **noise)
     return Simulation(truth, layout.pack(nominal, truth), calibration, validation)
