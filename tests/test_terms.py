@@ -106,7 +106,10 @@ def test_harmonics_match_a_plain_chain_with_the_offsets_added():
         np.testing.assert_allclose(R, R0, atol=1e-13)
 
 
-def _problem(seed=0, spec=terms.TermSpec((2, 3), (1,), 1), M=40, noise=0.0):
+SPEC = terms.TermSpec((2, 3), (1,), 1)
+
+
+def _problem(seed=0, spec=SPEC, M=40, noise=0.0):
     robot, rng = _arm6(seed)
     layout = Layout(6, base=True, hand=True, terms=spec)
     x = np.concatenate([rng.normal(0, 3e-4, layout.size - spec.size), np.zeros(spec.size)])

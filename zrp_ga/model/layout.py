@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga.model.robot import ZRPRobot
-from zrp_ga.model.terms import TermSpec, Terms
+from zrp_ga.model.terms import Terms, TermSpec
 
 Array = NDArray[np.float64]
 
@@ -111,7 +111,7 @@ class Layout:
     basis: Array | None = dataclasses.field(default=None, compare=False, repr=False)
     dh_fixed: tuple[str, ...] = ()
     dual: Array | None = dataclasses.field(default=None, compare=False, repr=False)
-    terms: TermSpec = TermSpec()
+    terms: TermSpec = dataclasses.field(default_factory=TermSpec)
 
     def __post_init__(self) -> None:
         for name in ("tools", "known_tools"):
