@@ -231,3 +231,34 @@ def test_bad_terms_settings_are_one_line_naming_the_key(value, message):
     with pytest.raises(ValueError, match=message) as info:
         with_terms(C(), Layout(6), presets.get("puma560"))
     assert "problem.terms" in str(info.value) and "\n" not in str(info.value)
+
+
+PLANAR_URDF = """<?xml version="1.0"?>
+<robot name="planar">
+  <link name="base"><inertial><mass value="50"/><origin xyz="0 0 0.1"/></inertial></link>
+  <link name="upper"><inertial><mass value="3.0"/><origin xyz="0.35 0 0"/></inertial></link>
+  <link name="fore"><inertial><mass value="2.0"/><origin xyz="0.25 0 0"/></inertial></link>
+  <link name="tool"><inertial><mass value="1.5"/><origin xyz="0.1 0 0"/></inertial></link>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/><origin xyz="0 0 0.3"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="0" velocity="0"/></joint>
+  <joint name="elbow" type="revolute"><parent link="upper"/><child link="fore"/><origin xyz="0.7 0 0"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="0" velocity="0"/></joint>
+  <joint name="flange" type="fixed"><parent link="fore"/><child link="tool"/><origin xyz="0.5 0 0"/></joint>
+</robot>
+"""
+
+
+def test_urdf_inertials_give_the_mass_model_and_the_hand_torques(tmp_path):
+    from zrp_ga.io.robot_files import read_robot
+
+    path = tmp_path / "planar.urdf"
+    path.write_text(PLANAR_URDF)
+    robot = read_robot(path)
+    assert robot.mass is not None and "URDF inertials" in robot.mass.source
+    # the base's 50 kg moves with no joint; the tool's 1.5 kg at 0.1 m beyond the end point rides on the elbow
+    L1, L2, m1, m2, mt, d = 0.7, 0.5, 3.0, 2.0, 1.5, 0.1
+    q = np.array([[0.3, -0.8], [1.2, 0.4]])
+    c1, c12 = np.cos(q[:, 0]), np.cos(q.sum(axis=1))
+    tau2 = G * (m2 * L2 / 2 * c12 + mt * (L2 + d) * c12)
+    tau1 = G * (m1 * L1 / 2 * c1 + m2 * (L1 * c1 + L2 / 2 * c12) + mt * (L1 * c1 + (L2 + d) * c12))
+    np.testing.assert_allclose(terms.gravity_torques(robot, q), np.column_stack([tau1, tau2]), rtol=1e-12)
