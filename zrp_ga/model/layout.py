@@ -392,6 +392,8 @@ def valid_names(layout: Layout) -> str:
     parts += ["base"] * layout.base + ["hand (hand orientation)"] * layout.hand
     if layout.tools:
         parts.append(f"tools (tool2..tool{layout.n_tools})")
+    if layout.terms:
+        parts.append(f"compliance, harmonics or one term ({', '.join(layout.terms.names)})")
     parts.append("or one component such as b0_3x")
     return ", ".join(parts)
 
