@@ -104,6 +104,7 @@ def run_seed(seed: int) -> dict[str, dict[str, float]]:
         reached = kinematics.forward(truth, comp.q)[1]
         row = _errors(reached, targets)
         row["fit_rms_mm"] = float(cal.summary["position_error_mm"]["calibration"]["calibrated"]["rms"])
+        row["nominal_returned"] = float(cal.summary.get("returned") == "nominal")
         if t is not None:
             c = dict(zip(cal.robot.terms.spec.names, cal.robot.terms.values))
             row.update({f"c{j}": c[f"compliance_{j}"] for j in C_TRUE})
@@ -137,11 +138,17 @@ def main() -> None:
         "| --- | ---: | ---: | ---: | ---: | ---: |",
     ]
     for name in names:
-        col = lambda k: np.array([r[name].get(k, np.nan) for r in results])
+        col = lambda k, name=name: np.array([r[name].get(k, np.nan) for r in results])
         cell = lambda v, f: "" if np.isnan(v).all() else f"{np.median(v):{f}} [{v.min():{f}}, {v.max():{f}}]"
         lines.append(f"| {name} | {cell(col('rms_mm'), '.4f')} | {cell(col('max_mm'), '.4f')} | {cell(col('fit_rms_mm'), '.4f')} | "
                      f"{cell(col('c2'), '.3g')} | {cell(col('c3'), '.3g')} |")  # fmt: skip
     lines += ["", f"| tracker noise (3-D RMS) | {noise:.4f} | | | {C_TRUE[2]:g} (true) | {C_TRUE[3]:g} (true) |", ""]
+    for name in names[1:]:
+        back = [s for s, r in enumerate(results) if r[name].get("nominal_returned")]
+        if back:
+            lines.append(f"{name}: the calibration returned the nominal arm (worse than nominal where it matters) for seed(s) "
+                         f"{', '.join(map(str, back))}; its compensation is then the nominal arm's (none).")  # fmt: skip
+    lines.append("")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text("\n".join(lines))
     print("\n".join(lines))
