@@ -262,3 +262,38 @@ def test_urdf_inertials_give_the_mass_model_and_the_hand_torques(tmp_path):
     tau2 = G * (m2 * L2 / 2 * c12 + mt * (L2 + d) * c12)
     tau1 = G * (m1 * L1 / 2 * c1 + m2 * (L1 * c1 + L2 / 2 * c12) + mt * (L1 * c1 + (L2 + d) * c12))
     np.testing.assert_allclose(terms.gravity_torques(robot, q), np.column_stack([tau1, tau2]), rtol=1e-12)
+
+
+def test_calibrate_takes_terms_and_every_file_names_them(tmp_path):
+    import json
+
+    import pandas as pd
+
+    import zrp_ga
+
+    cal = zrp_ga.calibrate("puma560", problem={"n_poses": 30, "cost": "nonlinear"}, algorithm="lm",
+                           terms={"compliance": [2, 3], "harmonics": {"order": 1, "joints": [1]}}, out=tmp_path)  # fmt: skip
+    names = ["compliance_2", "compliance_3", "harmonic_1_sin1", "harmonic_1_cos1"]
+    assert cal.robot.terms.spec.names == names and cal.task.layout.names[-4:] == names
+    params = pd.read_csv(tmp_path / "best_params.csv")
+    rows = params.set_index("joint").loc[names]
+    assert rows["term_unit"].tolist() == ["rad/(N m)", "rad/(N m)", "rad", "rad"]
+    np.testing.assert_allclose(rows["term_value"], cal.robot.terms.values)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["problem"]["terms"]["names"] == names and "generic" in summary["problem"]["terms"]["mass_model"]
+    back = ZRPRobot.from_yaml(tmp_path / "calibrated_robot.yaml")
+    np.testing.assert_array_equal(back.terms.values, cal.robot.terms.values)
+    assert "geometric part" in (tmp_path / "calibrated_robot.urdf").read_text()
+    unc = json.loads((tmp_path / "uncertainty.json").read_text())
+    assert unc["layout"]["terms"] == {"compliance": [2, 3], "harmonics": {"order": 1, "joints": [1]}}
+
+
+@pytest.mark.slow
+def test_the_population_optimisers_carry_the_term_genes():
+    import zrp_ga
+
+    for algorithm in ("ga", "cmaes"):
+        cal = zrp_ga.calibrate("puma560", problem={"n_poses": 20, "cost": "nonlinear"}, algorithm=algorithm,
+                               population={"mu": 8, "lambda_": 8, "generations": 3}, terms={"compliance": [2]})  # fmt: skip
+        assert cal.task.layout.names[-1] == "compliance_2"
+        assert np.isfinite(cal.summary["final_cost"]) and cal.robot.terms is not None
