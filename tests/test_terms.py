@@ -297,3 +297,10 @@ def test_the_population_optimisers_carry_the_term_genes():
                                population={"mu": 8, "lambda_": 8, "generations": 3}, terms={"compliance": [2]})  # fmt: skip
         assert cal.task.layout.names[-1] == "compliance_2"
         assert np.isfinite(cal.summary["final_cost"]) and cal.robot.terms is not None
+
+
+def test_pose_selection_refuses_terms_in_one_line():
+    from zrp_ga.problems import selection
+
+    with pytest.raises(ValueError, match="problem.terms: pose selection chooses poses for the geometric model"):
+        selection.build(presets.get("puma560"), terms={"compliance": [2]})
