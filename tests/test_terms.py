@@ -304,3 +304,35 @@ def test_pose_selection_refuses_terms_in_one_line():
 
     with pytest.raises(ValueError, match="problem.terms: pose selection chooses poses for the geometric model"):
         selection.build(presets.get("puma560"), terms={"compliance": [2]})
+
+
+def test_uncertainty_jacobians_carry_the_terms_against_differences():
+    from zrp_ga.model import metrics, uncertainty
+
+    problem, x, _ = _problem(seed=7)
+    layout, nominal = problem.layout, problem.nominal
+    q = problem.data.q[:6]
+    data = Measurements(q, np.zeros((6, 3)))
+    J = uncertainty.pose_jacobians(layout, nominal, x, q)
+    for k in [0, 20, *range(layout.size - 4, layout.size)]:  # an axis gene, a body gene, the terms
+        h = 1e-7 * (1e-2 if layout.full_names[k].startswith("compliance") else 1)
+        e = np.zeros_like(x)
+        e[k] = h
+        fd = (metrics.predicted_positions(layout, nominal, x + e, data)[0] - metrics.predicted_positions(layout, nominal, x - e, data)[0]) / (2 * h)
+        np.testing.assert_allclose(J[:, 3:, k], fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+
+
+def test_compensation_solves_on_the_full_model():
+    from zrp_ga.compensation import ik
+
+    _, _, true = _problem(seed=8)
+    q0 = np.array([0.2, -0.4, 0.5, 0.1, 0.6, -0.2])
+    R, p, J = ik.forward_jacobian(true, q0)
+    h = 1e-6
+    fd = np.stack([(kinematics.forward(true, q0 + h * e)[1] - kinematics.forward(true, q0 - h * e)[1]) / (2 * h) for e in np.eye(6)], axis=1)
+    np.testing.assert_allclose(J[3:], fd, atol=1e-8)
+    np.testing.assert_allclose(p, kinematics.forward(true, q0)[1], atol=1e-15)
+    target = kinematics.forward(true, q0 + 0.05)[1]
+    s = ik.solve(true, target, None, q0)
+    assert s.reached and np.linalg.norm(kinematics.forward(true, s.q)[1] - target) < 1e-9
+    assert np.linalg.norm(kinematics.forward(true.geometric, s.q)[1] - target) > 1e-5  # the terms matter here
