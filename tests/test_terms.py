@@ -281,6 +281,7 @@ def test_calibrate_takes_terms_and_every_file_names_them(tmp_path):
     np.testing.assert_allclose(rows["term_value"], cal.robot.terms.values)
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["problem"]["terms"]["names"] == names and "generic" in summary["problem"]["terms"]["mass_model"]
+    assert [summary["terms"][k]["value"] for k in names] == cal.robot.terms.values.tolist()
     back = ZRPRobot.from_yaml(tmp_path / "calibrated_robot.yaml")
     np.testing.assert_array_equal(back.terms.values, cal.robot.terms.values)
     assert "geometric part" in (tmp_path / "calibrated_robot.urdf").read_text()
