@@ -333,6 +333,9 @@ def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> SelectionTask:
     """The pose-selection instance of ``settings`` (``zrp_ga.core.schema.PoseSelectionConf``'s keys):
     simulated candidates, or the rows of ``calibration_file``."""
     c: PoseSelectionConf = section(PoseSelectionConf, settings, "problem")
+    if c.terms:  # the observability indices are those of the geometric model
+        raise ValueError("problem.terms: pose selection chooses poses for the geometric model; calibrate with terms afterwards "
+                         "(problem=measured with the chosen poses)")  # fmt: skip
     parts = measured(robot, run_seed, c) if c.calibration_file else simulated(robot, run_seed, c)
     everything = parts["calibrate_on"](np.arange(parts["candidates"].M))
     problem = SelectionProblem(everything.problem, c.k, c.index, c.length_scale, c.rcond, c.ridge)

@@ -249,10 +249,23 @@ def build(task: Task, result: Result, cfg: Config, resolved: dict[str, Any], dia
         "warnings": j["warnings"],
         "best_genome": j["best_genome"],
         **task.report(x),
+        **terms_summary(task, x),
         "config": resolved,
         "versions": records.versions(),
     }
     return summary, x
+
+
+def terms_summary(task: Task, x: np.ndarray) -> dict[str, Any]:
+    """``terms``: the calibrated non-geometric terms (``problem.terms``) by name, with their units
+    (compliance rad/(N m), harmonics rad); nothing without terms."""
+    if not task.problem.layout.terms:
+        return {}
+    t = task.calibrated_robot(x).terms
+    if t is None:
+        return {}
+    return {"terms": {name: {"value": float(v), "unit": "rad/(N m)" if name.startswith("compliance_") else "rad"}
+                      for name, v in zip(t.spec.names, t.values)}}  # fmt: skip
 
 
 def write(out: Path, task: Task, result: Result, summary: Summary, x: np.ndarray) -> None:
