@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
 from zrp_ga.io.measurements import reach_m
-from zrp_ga.model import kinematics, so3
+from zrp_ga.model import kinematics, so3, terms
 from zrp_ga.model.robot import ZRPRobot
 
 Array = NDArray[np.float64]
@@ -47,7 +47,13 @@ def chain(robot: ZRPRobot, q: ArrayLike) -> tuple[Array, Array, Array, Array]:
 def forward_jacobian(robot: ZRPRobot, q: ArrayLike) -> tuple[Array, Array, Array]:
     """Hand orientation R (3, 3), position p (3,) m and the geometric Jacobian J (6, n) at ``q``
     (n,): rows 0-2 the hand's angular velocity, rows 3-5 its linear velocity per unit joint
-    velocity: revolute ``[u_i; u_i x (p - o_i)]``, prismatic ``[0; u_i]`` (:func:`chain`)."""
+    velocity: revolute ``[u_i; u_i x (p - o_i)]``, prismatic ``[0; u_i]`` (:func:`chain`). The
+    full model: an arm carrying non-geometric terms (:mod:`zrp_ga.model.terms`) is evaluated at the
+    joint values it takes, ``q_eff(q)``, and J is ``J(q_eff) dq_eff/dq``."""
+    if robot.terms is not None:
+        geometric, q = robot.geometric, np.asarray(q, dtype=float)
+        R, p, J = forward_jacobian(geometric, terms.effective(robot, q))
+        return R, p, J @ terms.effective_derivative(robot, q)
     axes, points, R, p = chain(robot, q)
     rev = ~robot.prismatic
     J = np.zeros((6, robot.n))

@@ -235,6 +235,7 @@ class ProblemConf:
     loss_scale: Optional[float] = None  # m, where the robust loss turns linear (null: 1.345 x the noise, Huber's)
     outliers: Outliers = Outliers.report  # points far beyond the noise: named, or dropped and the fit repeated
     if_worse: Optional[IfWorse] = None  # a model worse than nominal: nominal or keep (null: measured nominal, simulated keep)
+    terms: Optional[Any] = None  # non-geometric terms fitted with the geometry (zrp_ga.model.terms): {compliance: [2, 3], harmonics: {order: 1, joints: [1]}, payload: {mass: 5, com: [0, 0, 0.1]}}
 
     def check(self, key: str = "problem") -> None:
         _require(math.isfinite(self.max_se) and self.max_se > 0, f"{key}.max_se", "a number > 0", self.max_se)

@@ -572,14 +572,28 @@ def write_all(
     out.mkdir(parents=True, exist_ok=True)
     paths = {"urdf": out / f"{stem}.urdf", "dh": out / f"{stem}_dh.yaml", "mdh": out / f"{stem}_mdh.yaml",
              "zrp": out / f"{stem}.yaml", "frames": out / f"{stem}_frames.yaml"}
-    to_urdf(robot, paths["urdf"], *((base, tool) if frames_in_urdf else (None, None)))
+    full, terms_note = robot, None
+    if robot.terms is not None:  # URDF and DH tables carry the geometry only
+        terms_note = (f"The calibration's non-geometric terms ({', '.join(robot.terms.spec.names)}) are not in this file: it holds "
+                      f"the geometric part; {paths['zrp'].name} (ZRP YAML) carries them")  # fmt: skip
+        log.info("URDF and DH files hold the geometric part of %s; its terms (%s) are in %s only", robot.name,
+                 ", ".join(robot.terms.spec.names), paths["zrp"].name)  # fmt: skip
+        robot = robot.geometric
+    urdf = to_urdf(robot, None, *((base, tool) if frames_in_urdf else (None, None)))
+    if terms_note is not None:
+        lines = urdf.split("\n", 1)
+        first = lines[0].startswith("<?xml")
+        comment = f"<!-- {terms_note.replace('--', '-')} -->"
+        urdf = f"{lines[0]}\n{comment}\n{lines[1] if len(lines) > 1 else ''}" if first else f"{comment}\n{urdf}"
+    paths["urdf"].write_text(urdf)
     like = nominal_tables(nominal) if nominal is not None else _source_tables(robot.source)
     if like is not None and like["dh"].joint_types != robot.joint_types:
         like = None  # a source of another arm: the tables' own rules
     mismatches = tables(robot, like=like)  # to_dh(robot, convention, like=...) of each
     for convention, title in (("dh", "Standard DH"), ("mdh", "Modified DH")):
         table, mismatch = mismatches[convention]
-        header = [f"{title} table of {robot.name} (zrp_ga.io.robot_files.to_dh): {mismatch}", *mismatch.notes]
+        header = [f"{title} table of {robot.name} (zrp_ga.io.robot_files.to_dh): {mismatch}", *mismatch.notes,
+                  *([terms_note] if terms_note else [])]  # fmt: skip
         if like is not None:
             paths[f"{convention}_corrections"] = out / f"{stem}_{convention}_corrections.csv"
             header.append(f"In the nominal table's conventions (row = nominal + correction; {paths[f'{convention}_corrections'].name})")
@@ -589,7 +603,7 @@ def write_all(
             rows = ", ".join(str(i + 1) for i in np.flatnonzero(table.beta))
             log.info("%s: row(s) %s use Hayati's parameterisation (nearly parallel axes; the file's notes say why)",
                         paths[convention].name, rows)
-    paths["zrp"].write_text(_yaml_text(robot.to_dict()))  # robot.to_yaml(path), the same text
+    paths["zrp"].write_text(_yaml_text(full.to_dict()))  # full.to_yaml(path), the same text: the terms included
     poses = {"base": base, "tool": tool}
     frames = {k: _identity_entry() if T is None else _frame_entry(check_transform(T, k)) for k, T in poses.items()}
     comment = (

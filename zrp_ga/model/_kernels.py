@@ -358,3 +358,86 @@ def _jac_rotation_derivative(u, c, s, k, out):  # pragma: no cover - compiled
     k1, k2 = (k + 1) % 3, (k + 2) % 3  # [e_k]x: +1 at (k2, k1), -1 at (k1, k2)
     out[k2, k1] += s
     out[k1, k2] -= s
+
+
+# --- joint angles per parameter set (non-geometric terms, zrp_ga.model.terms) ----------------------
+@jit(inline="always")
+def _chain_rodrigues_lanes(Ub, Bb, Hb, cb, sb, t, X, w):  # pragma: no cover - compiled
+    """:func:`_chain_rodrigues` with cos and sin per lane, cb, sb (n, LANES) of the pose (the
+    same operations in the same order)."""
+    n = Ub.shape[0]
+    for p in range(w):
+        for k in range(3):
+            X[k, p] = Bb[n, k, p]
+            for j in range(3):
+                X[3 + 3 * j + k, p] = Hb[k, j, p]
+    for j in range(n):
+        i = n - 1 - j
+        ti = t[i]
+        u, b, ci_, si_ = Ub[i], Bb[i], cb[i], sb[i]
+        for p in range(w):
+            ci, si = ci_[p], si_[p]
+            vi = 1.0 - ci
+            ux, uy, uz = u[0, p], u[1, p], u[2, p]
+            X[0, p], X[1, p], X[2, p] = _rotate(ci, si, vi, ux, uy, uz, X[0, p], X[1, p], X[2, p])
+            X[3, p], X[4, p], X[5, p] = _rotate(ci, si, vi, ux, uy, uz, X[3, p], X[4, p], X[5, p])
+            X[6, p], X[7, p], X[8, p] = _rotate(ci, si, vi, ux, uy, uz, X[6, p], X[7, p], X[8, p])
+            X[9, p], X[10, p], X[11, p] = _rotate(ci, si, vi, ux, uy, uz, X[9, p], X[10, p], X[11, p])
+            X[0, p] += b[0, p] + ti * ux
+            X[1, p] += b[1, p] + ti * uy
+            X[2, p] += b[2, p] + ti * uz
+
+
+@jit(nogil=True)
+def residual_rodrigues_lanes(U, B, H, c, s, t, p_meas, wp, R_meas, use_rot, out, k0, k1):  # pragma: no cover
+    """:func:`residual_rodrigues` with c, s (M, n, P): each parameter set's own joint angles; t (M, n)."""
+    n, P = U.shape[0], U.shape[2]
+    Ub, Bb, Hb = np.empty((n, 3, LANES)), np.empty((n + 1, 3, LANES)), np.empty((3, 3, LANES))
+    cb, sb = np.empty((n, LANES)), np.empty((n, LANES))
+    X, acc = np.empty((12, LANES)), np.empty((2, LANES))
+    for k in range(k0, k1):
+        p0 = k * LANES
+        w = min(P - p0, LANES)
+        _chunk(U, B, H, p0, w, Ub, Bb, Hb)
+        for p in range(w):
+            acc[0, p] = 0.0
+            acc[1, p] = 0.0
+        for m in range(c.shape[0]):
+            _pack(c[m], p0, w, cb)
+            _pack(s[m], p0, w, sb)
+            _chain_rodrigues_lanes(Ub, Bb, Hb, cb, sb, t[m], X, w)
+            _accumulate_residual(X, p_meas[m], wp[m], R_meas[m], use_rot, acc, w)
+        out0, out1 = out[0, p0 : p0 + w], out[1, p0 : p0 + w]
+        for p in range(w):
+            out0[p], out1[p] = acc[0, p], acc[1, p]
+
+
+@jit
+def forward_kernel_lanes(U, B, H, c, s, t, R_out, p_out):  # pragma: no cover - compiled
+    """:func:`forward_kernel` with c, s (M, n, P): each parameter set's own joint angles."""
+    n, P = U.shape[0], U.shape[2]
+    X = np.empty((12, P))
+    for m in range(c.shape[0]):
+        for p in range(P):
+            for k in range(3):
+                X[k, p] = B[n, k, p]
+                for j in range(3):
+                    X[3 + 3 * j + k, p] = H[k, j, p]
+        for j in range(n):
+            i = n - 1 - j
+            ti = t[m, i]
+            for p in range(P):
+                ci, si = c[m, i, p], s[m, i, p]
+                vi = 1.0 - ci
+                ux, uy, uz = U[i, 0, p], U[i, 1, p], U[i, 2, p]
+                for v in range(4):
+                    X[3 * v, p], X[3 * v + 1, p], X[3 * v + 2, p] = _rotate(ci, si, vi, ux, uy, uz, X[3 * v, p], X[3 * v + 1, p],
+                                                                            X[3 * v + 2, p])  # fmt: skip
+                X[0, p] += B[i, 0, p] + ti * ux
+                X[1, p] += B[i, 1, p] + ti * uy
+                X[2, p] += B[i, 2, p] + ti * uz
+        for p in range(P):
+            for k in range(3):
+                p_out[p, m, k] = X[k, p]
+                for j in range(3):
+                    R_out[p, m, k, j] = X[3 + 3 * j + k, p]

@@ -26,13 +26,19 @@ Array = NDArray[np.float64]
 def chain(U: Array, B: Array, H: Array, c: Array, s: Array, t: Array) -> Array:
     """X (4, 3, M, P) of every pose and parameter set from the tail, Eq. (1-5, 14): each joint
     rotates the four vectors by Rodrigues' formula and adds its body vector (129 flops per joint,
-    as ``_kernels._chain_rodrigues`` and ``_kernels._forward_chain``)."""
+    as ``_kernels._chain_rodrigues`` and ``_kernels._forward_chain``). c, s (M, n), or (M, n, P)
+    when every parameter set turns its joints by its own angles (the ``_lanes`` kernels: joint
+    offsets of non-geometric terms, :mod:`zrp_ga.model.terms`)."""
     n, P, M = U.shape[0], U.shape[2], c.shape[0]
     X = np.empty((4, 3, M, P))
     X[0] = B[n][:, None, :]
     X[1:] = np.swapaxes(H, 0, 1)[:, :, None, :]  # X[1 + j, k] = R_h0[k, j]
     for i in range(n - 1, -1, -1):
-        ci, si, ti = c[:, i, None], s[:, i, None], t[:, i, None]  # (M, 1)
+        ti = t[:, i, None]  # (M, 1)
+        if c.ndim == 3:  # per parameter set (joint offsets of terms): (M, P)
+            ci, si = c[:, i], s[:, i]
+        else:
+            ci, si = c[:, i, None], s[:, i, None]  # (M, 1)
         vi = 1.0 - ci
         ux, uy, uz = U[i, 0], U[i, 1], U[i, 2]  # (P,)
         x, y, z = X[:, 0], X[:, 1], X[:, 2]  # (4, M, P)

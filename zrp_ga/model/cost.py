@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga.core.schema import Cost, Kernel, Norm
-from zrp_ga.model import error_model, kinematics, so3
+from zrp_ga.model import error_model, kinematics, so3, terms
 from zrp_ga.model.layout import Layout
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.robot import ZRPRobot
@@ -76,6 +76,8 @@ class CalibrationProblem:
             pose = np.hstack([np.full((data.M, 3), self.orientation_weight), pose])
         self._row_weights = np.concatenate([pose.ravel(), np.full(n, float(self.unit_weight))])
         self._groups = self._tool_groups()
+        spec = self.layout.terms  # non-geometric terms: their features at each group's poses, on the nominal arm
+        self._phi = [terms.features(spec, self.nominal, data.q[rows]) if spec else None for _, rows, *_ in self._groups]
         self.J_nominal = self._jacobian(np.zeros(K), exact=False)
         self.y_nominal = self._residual(np.zeros(K))  # [dr; dp; 0] of the nominal robot
 
@@ -115,9 +117,12 @@ class CalibrationProblem:
             else:
                 m = self.layout.unpack(self.nominal, X)
                 sums = 0.0
-                for k, _, terms, p, R, w in self._groups:
+                for (k, rows, jt, p, R, w), phi in zip(self._groups, self._phi):
                     t = m.for_tool(k)
-                    sums = sums + kinematics.residual_sums_unchecked(t.U, t.B, t.H, terms, p, R, w, kernel=self.kernel.value)
+                    if phi is not None:  # each genome's own joint angles
+                        dq = terms.offsets(self.layout.terms, self.nominal.n, phi, m.theta)
+                        jt = kinematics.joint_terms_lanes(self.data.q[rows], dq, self.nominal.prismatic)
+                    sums = sums + kinematics.residual_sums_unchecked(t.U, t.B, t.H, jt, p, R, w, kernel=self.kernel.value)
                 unit = 0.5 * (m.length2 - 1.0)
                 total = self.orientation_weight**2 * sums[0] + sums[1] + self.unit_weight**2 * np.einsum("ip,ip->p", unit, unit)
             if self.norm is Norm.rms:
@@ -145,8 +150,18 @@ class CalibrationProblem:
         R, p = np.empty((data.M, 3, 3)), np.empty((data.M, 3))
         for k, rows, *_ in self._groups:
             u0, b0, R_h0 = m.for_tool(k).population_first()
-            R[rows], p[rows] = (a[0] for a in kinematics.forward_batch(u0, b0, R_h0, data.q[rows], self.nominal.prismatic))
+            q = data.q[rows] if m.theta is None else self._effective_q(m)[rows]
+            R[rows], p[rows] = (a[0] for a in kinematics.forward_batch(u0, b0, R_h0, q, self.nominal.prismatic))
         return R, p
+
+    def _effective_q(self, m) -> Array:
+        """The joint values (M, n) the first genome of model arrays ``m`` turns its joints to
+        (the commanded ones plus its terms' offsets)."""
+        q = self.data.q.copy()
+        for (_, rows, *_), phi in zip(self._groups, self._phi):
+            if phi is not None:
+                q[rows] += terms.offsets(self.layout.terms, self.nominal.n, phi, m.theta[:, 0])
+        return q
 
     def _residual(self, x: Array) -> Array:
         """Nonlinear weighted residual: per pose [w dr; dp] (or dp), then -(|u0 + du0|^2 - 1) / 2."""
@@ -170,6 +185,8 @@ class CalibrationProblem:
         length = np.linalg.norm(raw, axis=1)
         unit = raw / length[:, None]
         J = self._tool_jacobians(unit, m, compiled=exact)
+        if self.layout.terms:
+            J[:, :, blocks["terms"]] = self._term_columns(unit, m)
         if data.position_only:
             J = J[:, 3:]
         elif exact:
@@ -189,20 +206,35 @@ class CalibrationProblem:
         J = np.vstack([J.reshape(-1, J.shape[-1]), U]) * self._row_weights[:, None]
         return self.layout.columns(J)  # J N: the chain rule through x = N z (the free columns for a plain mask)
 
+    def _term_columns(self, unit: Array, m) -> Array:
+        """Columns (M, 6, F) of the term genes: the joint's column of the geometric Jacobian at the
+        effective joint values times the term's feature, ``d pose / d q_j * phi_f``."""
+        import types
+
+        q, out = self._effective_q(m), np.empty((self.data.M, 6, self.layout.terms.size))
+        joints = self.layout.terms.joints
+        for (k, rows, *_), phi in zip(self._groups, self._phi):
+            arm = types.SimpleNamespace(u0=unit, b0=m.for_tool(k).B[:, :, 0], R_h0=m.H[:, :, 0], prismatic=self.nominal.prismatic,
+                                        n=self.nominal.n)  # fmt: skip
+            Jq = terms.joint_jacobian(arm, q[rows])
+            out[rows] = Jq[:, :, joints] * phi[:, None, :]
+        return out
+
     def _tool_jacobians(self, unit: Array, m, compiled: bool) -> Array:
         """Pose Jacobians (M, 6, K) at the unit axes ``unit`` (n, 3) and one genome's model
         arrays: each tool's poses with its last body vector, whose columns are that tool's genes.
         ``compiled``: the compiled Jacobian (the pseudo-inverse step and LM call it often), else
         the numpy reference (the nominal Jacobian, computed once: bit for bit zrp_ga 0.1's)."""
         data, layout, n = self.data, self.layout.unmasked, self.nominal.n
+        q = data.q if m.theta is None else self._effective_q(m)
         if len(self._groups) == 1 and self._groups[0][0] == 0 and not layout.tools:
-            return error_model.jacobian_arrays(unit, m.B[:, :, 0], self.nominal.prismatic, data.q, layout.base, layout.hand,
-                                               compiled)  # fmt: skip
+            Jg = error_model.jacobian_arrays(unit, m.B[:, :, 0], self.nominal.prismatic, q, layout.base, layout.hand, compiled)
+            return Jg if not layout.terms else np.concatenate([Jg, np.zeros((data.M, 6, layout.terms.size))], axis=2)
         J = np.zeros((data.M, 6, layout.size))
         core = 6 * n + 3 * layout.base + 3 * layout.hand
         end = slice(6 * n - 3, 6 * n)  # db0_{n+1}: tool 1's last body vector
         for k, rows, *_ in self._groups:
-            Jk = error_model.jacobian_arrays(unit, m.for_tool(k).B[:, :, 0], self.nominal.prismatic, data.q[rows],
+            Jk = error_model.jacobian_arrays(unit, m.for_tool(k).B[:, :, 0], self.nominal.prismatic, q[rows],
                                              layout.base, layout.hand, compiled)  # fmt: skip
             if k:
                 J[rows, :, layout.blocks[f"tool{k + 1}"]] = Jk[:, :, end]

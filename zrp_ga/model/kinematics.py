@@ -95,27 +95,45 @@ def joint_terms(q: Array, prismatic: ArrayLike | None) -> tuple[Array, Array, Ar
     return np.where(pri, 1.0, np.cos(q)), np.where(pri, 0.0, np.sin(q)), np.where(pri, q, 0.0)
 
 
+def joint_terms_lanes(q: Array, dq: Array, prismatic: ArrayLike | None) -> tuple[Array, Array, Array]:
+    """:func:`joint_terms` of joint values that differ per parameter set: ``q`` (M, n) plus the
+    offsets ``dq`` (M, n, P) (non-geometric terms, :mod:`zrp_ga.model.terms`; revolute joints
+    only, prismatic offsets must be 0): cos and sin (M, n, P), t (M, n)."""
+    n = q.shape[1]
+    pri = np.zeros(n, dtype=bool) if prismatic is None else np.asarray(prismatic, dtype=bool)
+    a = q[:, :, None] + dq
+    return (np.where(pri[None, :, None], 1.0, np.cos(a)), np.where(pri[None, :, None], 0.0, np.sin(a)),
+            np.where(pri, q, 0.0))  # fmt: skip
+
+
 def forward_batch(
-    u0: ArrayLike, b0: ArrayLike, R_h0: ArrayLike, q: ArrayLike, prismatic: ArrayLike | None = None
+    u0: ArrayLike, b0: ArrayLike, R_h0: ArrayLike, q: ArrayLike, prismatic: ArrayLike | None = None, dq: ArrayLike | None = None
 ) -> tuple[Array, Array]:
     """Hand poses of P parameter sets at M poses, in one call of a kernel (compiled, or its
     numpy twin for small problems: the same numbers).
 
     u0 (P, n, 3), b0 (P, n+1, 3), R_h0 (3, 3) or (P, 3, 3), q (M, n) (rad for revolute, m for
     prismatic joints), prismatic (n,) bool. Returns R (P, M, 3, 3) and p (P, M, 3), m.
-    Axes need not be unit vectors: the formula is Eq. (6-8) as written.
+    Axes need not be unit vectors: the formula is Eq. (6-8) as written. ``dq`` (M, n, P): each
+    parameter set's own joint offsets (non-geometric terms), added to q.
     """
     U, B, H = _population(u0, b0, R_h0)
     n, P = U.shape[0], U.shape[2]
     q = np.atleast_2d(check_q(q, n))
     R = np.empty((P, q.shape[0], 3, 3))
     p = np.empty((P, q.shape[0], 3))
-    c, s, t = (_kernel_array(a) for a in joint_terms(q, prismatic))
+    if dq is None:
+        c, s, t = (_kernel_array(a) for a in joint_terms(q, prismatic))
+    else:
+        dq = np.asarray(dq, dtype=float)
+        if dq.shape != (q.shape[0], n, P):
+            raise ValueError(f"dq: expected shape ({q.shape[0]}, {n}, {P}), got {dq.shape}")
+        c, s, t = (_kernel_array(a) for a in joint_terms_lanes(q, dq, prismatic))
 
     def compiled_call():
         from zrp_ga.model import _kernels
 
-        _kernels.forward_kernel(U, B, H, c, s, t, R, p)
+        (_kernels.forward_kernel if dq is None else _kernels.forward_kernel_lanes)(U, B, H, c, s, t, R, p)
 
     compiled.call("forward", P * q.shape[0] * max(n, 1), compiled_call, lambda: _numpy_kernels.forward(U, B, H, c, s, t, R, p))
     return R, p
@@ -185,7 +203,11 @@ def residual_sums_unchecked(
     c, s, t = (_kernel_array(a) for a in terms)
     check_layout(U, B, H, c, s, t, p_meas, wp, R)
     out = np.empty((2, P))
-    if kernel == "rodrigues":
+    if c.ndim == 3:  # joint angles per parameter set (terms): the Rodrigues form only
+        args = (U, B, H, c, s, t, p_meas, wp, R, use_rot, out)
+        compiled.call("residual", P * M * U.shape[0], lambda: _run_chunks("residual_rodrigues_lanes", args, P, M, threads),
+                      lambda: _numpy_kernels.residual_rodrigues(*args))  # fmt: skip
+    elif kernel == "rodrigues":
         args = (U, B, H, c, s, t, p_meas, wp, R, use_rot, out)
         compiled.call("residual", P * M * U.shape[0], lambda: _run_chunks("residual_rodrigues", args, P, M, threads),
                       lambda: _numpy_kernels.residual_rodrigues(*args))  # fmt: skip
@@ -202,8 +224,9 @@ def check_layout(U: Array, B: Array, H: Array, c: Array, s: Array, t: Array, p_m
     kernels check no index (numba does not), so a wrong shape here would read or write past an
     array's end."""
     n, P = U.shape[0], U.shape[-1]
-    M = c.shape[0] if c.ndim == 2 else -1
-    expected = {"U": (U, (n, 3, P)), "B": (B, (n + 1, 3, P)), "H": (H, (3, 3, P)), "c": (c, (M, n)), "s": (s, (M, n)),
+    M = c.shape[0] if c.ndim in (2, 3) else -1
+    cs = (M, n) if c.ndim == 2 else (M, n, P)  # (M, n, P): each parameter set's own angles
+    expected = {"U": (U, (n, 3, P)), "B": (B, (n + 1, 3, P)), "H": (H, (3, 3, P)), "c": (c, cs), "s": (s, cs),
                 "t": (t, (M, n)), "p_meas": (p_meas, (M, 3)), "weights": (wp, (M, 3)), "R_meas": (R, (M, 3, 3))}  # fmt: skip
     if U.ndim != 3 or n < 1:
         raise ValueError(f"U: expected shape (n, 3, P) with n >= 1, got {U.shape}")
@@ -268,7 +291,8 @@ def forward_reference(robot: ZRPRobot, q: ArrayLike) -> tuple[Array, Array]:
 
 
 def forward(robot: ZRPRobot, q: ArrayLike) -> tuple[Array, Array]:
-    """Hand orientation and position of ``robot`` at joint values ``q``.
+    """Hand orientation and position of ``robot`` at joint values ``q`` (the full model: a robot
+    carrying non-geometric terms turns its joints to :func:`zrp_ga.model.terms.effective`).
 
     q (n,) gives R (3, 3) and p (3,); q (M, n) gives R (M, 3, 3) and p (M, 3); metres.
 
@@ -278,6 +302,10 @@ def forward(robot: ZRPRobot, q: ArrayLike) -> tuple[Array, Array]:
     array([ 0.4521 , -0.15005,  1.10363])
     """
     q = check_q(q, robot.n)
+    if robot.terms is not None:  # the joint values the arm takes (compliance, harmonics)
+        from zrp_ga.model import terms
+
+        q = terms.effective(robot, q)
     R, p = forward_batch(robot.u0[None], robot.b0[None], robot.R_h0, q, robot.prismatic)
     if q.ndim == 1:
         return R[0, 0], p[0, 0]

@@ -46,6 +46,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga.model.robot import ZRPRobot
+from zrp_ga.model.terms import TermSpec, Terms
 
 Array = NDArray[np.float64]
 
@@ -76,6 +77,7 @@ class ModelArrays(NamedTuple):
     H: Array
     length2: Array
     ends: Array
+    theta: Array | None = None  # (F, P) the non-geometric term genes (None: none)
 
     def for_tool(self, k: int) -> ModelArrays:
         """The arrays with tool k's last body vector in ``B`` (tool 0: these arrays)."""
@@ -109,6 +111,7 @@ class Layout:
     basis: Array | None = dataclasses.field(default=None, compare=False, repr=False)
     dh_fixed: tuple[str, ...] = ()
     dual: Array | None = dataclasses.field(default=None, compare=False, repr=False)
+    terms: TermSpec = TermSpec()
 
     def __post_init__(self) -> None:
         for name in ("tools", "known_tools"):
@@ -181,11 +184,12 @@ class Layout:
     def full_names(self) -> list[str]:
         """Names of every gene, fixed or free (the unmasked genome's order)."""
         names = parameter_names(self.n, self.base, self.hand)
-        return names + [f"b0_{self.n + 1}{c}_tool{k}" for k in range(2, self.n_tools + 1) for c in "xyz"]
+        names += [f"b0_{self.n + 1}{c}_tool{k}" for k in range(2, self.n_tools + 1) for c in "xyz"]
+        return names + self.terms.names
 
     @property
     def full_size(self) -> int:
-        return 6 * self.n + 3 * self.base + 3 * self.hand + 3 * len(self.tools)
+        return 6 * self.n + 3 * self.base + 3 * self.hand + 3 * len(self.tools) + self.terms.size
 
     @functools.cached_property
     def free(self) -> NDArray[np.intp]:
@@ -237,6 +241,8 @@ class Layout:
             if on:
                 out[name] = slice(k, k + 3)
                 k += 3
+        if self.terms:
+            out["terms"] = slice(k, k + self.terms.size)
         return out
 
     def expand(self, X: ArrayLike) -> Array:
@@ -280,7 +286,8 @@ class Layout:
             H = (Rotation.from_rotvec(X[:, blocks["hand"]]).as_matrix() @ nominal.R_h0).transpose(1, 2, 0)
         else:
             H = np.broadcast_to(nominal.R_h0[:, :, None], (3, 3, P))
-        return ModelArrays(U, B, np.ascontiguousarray(H), length2, self._ends(nominal, B, H, D, blocks))
+        theta = np.ascontiguousarray(D[blocks["terms"]]) if self.terms else None
+        return ModelArrays(U, B, np.ascontiguousarray(H), length2, self._ends(nominal, B, H, D, blocks), theta)
 
     def _ends(self, nominal: ZRPRobot, B: Array, H: Array, D: Array, blocks: dict[str, slice]) -> Array:
         """The last body vector of every tool (T, 3, P): tool 1, the tools with genes, the known
@@ -316,6 +323,10 @@ class Layout:
             nominal_ends = nominal.b0[-1] + np.array(self.tools) @ nominal.R_h0.T
             ends = nominal_ends if ends is None else np.asarray(ends, dtype=float).reshape(len(self.tools), 3)
             parts.append((ends - nominal_ends).ravel())
+        if self.terms:
+            parts.append(_term_values(robot, self.terms))
+        elif robot.terms is not None:
+            raise ValueError("layout: the robot carries non-geometric terms, but the genome has none")
         x = np.concatenate(parts)
         if self.basis is not None:
             z = self.restrict(x)
@@ -333,8 +344,19 @@ class Layout:
     def robot(self, nominal: ZRPRobot, x: ArrayLike, name: str | None = None, tool: int = 0) -> ZRPRobot:
         """The robot of one genome ``x`` (K,) (or full genome) with the end point of tool ``tool`` (0: tool 1;
         then the tools with genes, then the known ones), axes normalised."""
-        u0, b0, R_h0 = (a[0] for a in self.unpack(nominal, x).for_tool(tool).population_first())
-        return nominal.replace(u0=u0, b0=b0, R_h0=R_h0, name=name or nominal.name, normalize=True)
+        m = self.unpack(nominal, x)
+        u0, b0, R_h0 = (a[0] for a in m.for_tool(tool).population_first())
+        terms = Terms(self.terms, m.theta[:, 0]) if self.terms else None
+        return nominal.replace(u0=u0, b0=b0, R_h0=R_h0, name=name or nominal.name, normalize=True, terms=terms)
+
+
+def _term_values(robot: ZRPRobot, spec: TermSpec) -> Array:
+    """The values (F,) of ``spec``'s terms in ``robot`` (0 where it carries none of them)."""
+    have = {} if robot.terms is None else dict(zip(robot.terms.spec.names, robot.terms.values))
+    extra = sorted(set(have) - set(spec.names))
+    if extra:
+        raise ValueError(f"layout: the robot carries the term {extra[0]}, which the genome does not hold")
+    return np.array([have.get(k, 0.0) for k in spec.names])
 
 
 def _groups(layout: Layout) -> dict[str, list[str]]:
@@ -353,6 +375,10 @@ def _groups(layout: Layout) -> dict[str, list[str]]:
     if layout.tools:
         out["tools"] = [k for k in full if "_tool" in k]
         out.update({f"tool{t}": [f"b0_{n + 1}{c}_tool{t}" for c in "xyz"] for t in range(2, layout.n_tools + 1)})
+    if layout.terms.compliance:
+        out["compliance"] = [k for k in full if k.startswith("compliance_")]
+    if layout.terms.harmonics:
+        out["harmonics"] = [k for k in full if k.startswith("harmonic_")]
     out.update({k: [k] for k in full})  # one component: b0_3x, u0_2z, rh_x
     return out
 

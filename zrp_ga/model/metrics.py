@@ -15,7 +15,7 @@ import dataclasses
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zrp_ga.model import error_model, kinematics
+from zrp_ga.model import error_model, kinematics, terms
 from zrp_ga.model.layout import Layout
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.robot import ZRPRobot
@@ -36,7 +36,10 @@ def predicted_positions(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: M
     for k in np.unique(tools):
         rows = tools == k
         u0, b0, R_h0 = m.for_tool(int(k)).population_first()
-        p[:, rows] = kinematics.forward_batch(u0, b0, R_h0, data.q[rows], nominal.prismatic)[1]
+        dq = None
+        if layout.terms:  # the non-geometric terms' joint offsets, features on the nominal arm (zrp_ga.model.terms)
+            dq = terms.offsets(layout.terms, nominal.n, terms.features(layout.terms, nominal, data.q[rows]), m.theta)
+        p[:, rows] = kinematics.forward_batch(u0, b0, R_h0, data.q[rows], nominal.prismatic, dq)[1]
     return p
 
 

@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga.core.fileio import yaml_text
 from zrp_ga.model import so3
+from zrp_ga.model.terms import MassModel, Terms
 
 UNIT_TOL = 1e-9
 # Joint range assumed when a robot states none: revolute rad, prismatic m.
@@ -71,6 +72,10 @@ class ZRPRobot:
     # Where the arm was read from (zrp_ga.io.urdf.URDFSource for a URDF), so that exports can write
     # the calibrated arm into that file; kept by replace(), not part of the YAML form.
     source: object = dataclasses.field(default=None, repr=False)
+    # Beyond geometry (zrp_ga.model.terms): the mass model (URDF inertials, a robot file's, or None:
+    # the generic one where needed) and fitted terms (compliance, harmonics; None: geometric only).
+    mass: MassModel | None = dataclasses.field(default=None, repr=False)
+    terms: Terms | None = dataclasses.field(default=None, repr=False)
 
     def __post_init__(self, normalize: bool) -> None:
         u0 = np.array(self.u0, dtype=float) if np.ndim(self.u0) == 2 else None
@@ -105,6 +110,17 @@ class ZRPRobot:
             object.__setattr__(self, attr, value)
         object.__setattr__(self, "joint_types", types)
         object.__setattr__(self, "joint_names", _joint_names(self.joint_names, n))
+        if self.mass is not None and len(self.mass.masses) != n:
+            raise ValueError(f"mass: {len(self.mass.masses)} link masses, the robot has {n} joints")
+        if self.terms is not None:
+            self.terms.spec.check(self, "terms")
+            if not self.terms.spec:
+                object.__setattr__(self, "terms", None)
+
+    @property
+    def geometric(self) -> ZRPRobot:
+        """This arm without its non-geometric terms (what URDF and DH tables carry)."""
+        return self if self.terms is None else self.replace(terms=None)
 
     @property
     def n(self) -> int:
@@ -135,7 +151,8 @@ class ZRPRobot:
         t = _array("t", t, (3,))
         b0 = self.b0 @ R.T
         b0[0] += t
-        return self.replace(u0=self.u0 @ R.T, b0=b0, R_h0=R @ self.R_h0, normalize=True)
+        mass = None if self.mass is None else self.mass.rotated(R)
+        return self.replace(u0=self.u0 @ R.T, b0=b0, R_h0=R @ self.R_h0, normalize=True, mass=mass)
 
     def with_tool(self, offset: ArrayLike) -> ZRPRobot:
         """The end point moved by ``offset`` (3,), m, given in the hand frame (e.g. a probe on the flange)."""
@@ -228,6 +245,10 @@ class ZRPRobot:
             data["joint_names"] = list(self.joint_names)
         if self.limits is not None:
             data["limits"] = self.limits.tolist()
+        if self.terms is not None:
+            data["terms"] = self.terms.to_dict()
+        if self.mass is not None:
+            data["mass"] = self.mass.to_dict()
         return data
 
     @classmethod
@@ -238,7 +259,7 @@ class ZRPRobot:
         missing = [k for k in ("u0", "b0") if k not in data]
         if missing:
             raise ValueError(f"{source}: missing key(s) {', '.join(missing)}")
-        unknown = set(data) - {"name", "joint_types", "u0", "b0", "R_h0", "joint_names", "limits"}
+        unknown = set(data) - {"name", "joint_types", "u0", "b0", "R_h0", "joint_names", "limits", "terms", "mass"}
         if unknown:
             raise ValueError(f"{source}: unknown key(s) {', '.join(sorted(unknown))}")
         try:
@@ -251,6 +272,8 @@ class ZRPRobot:
                 joint_names=data.get("joint_names"),
                 limits=data.get("limits"),
                 normalize=normalize,
+                mass=None if data.get("mass") is None else MassModel.from_dict(data["mass"], len(data["u0"]), "mass"),
+                terms=None if data.get("terms") is None else Terms.from_dict(data["terms"], "terms"),
             )
         except ValueError as exc:
             raise ValueError(f"{source}: {exc}") from None

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from zrp_ga.model import error_model, so3
+from zrp_ga.model import error_model, so3, terms
 from zrp_ga.model.layout import Layout
 from zrp_ga.model.robot import ZRPRobot
 
@@ -68,7 +68,11 @@ def pose_jacobians(layout: Layout, nominal: ZRPRobot, x: ArrayLike, q: ArrayLike
     length = np.linalg.norm(raw, axis=1)
     unit = raw / length[:, None]
     core = 6 * n + 3 * layout.base + 3 * layout.hand
-    Jc = error_model.jacobian_arrays(unit, m.B[:, :, 0], nominal.prismatic, np.atleast_2d(q), layout.base, layout.hand)
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if layout.terms:  # the full model: the joints turned by the terms (features on the nominal arm, as the fit has them)
+        phi = terms.features(layout.terms, nominal, q)
+        q = q + terms.offsets(layout.terms, n, phi, m.theta[:, 0])
+    Jc = error_model.jacobian_arrays(unit, m.B[:, :, 0], nominal.prismatic, q, layout.base, layout.hand)
     if layout.hand:
         Jc[:, :3, blocks["hand"]] = Jc[:, :3, blocks["hand"]] @ so3.left_jacobian(x[blocks["hand"]])
     N = (np.eye(3) - unit[:, :, None] * unit[:, None, :]) / length[:, None, None]
@@ -76,6 +80,11 @@ def pose_jacobians(layout: Layout, nominal: ZRPRobot, x: ArrayLike, q: ArrayLike
     Jc[..., : 3 * n] = np.einsum("mrik,ikl->mril", Ju, N).reshape(Jc.shape[:2] + (3 * n,))
     J = np.zeros(Jc.shape[:2] + (layout.full_size,))
     J[..., :core] = Jc
+    if layout.terms:  # d pose / d q_j times the term's feature
+        import types
+
+        arm = types.SimpleNamespace(u0=unit, b0=m.B[:, :, 0], R_h0=m.H[:, :, 0], prismatic=nominal.prismatic, n=n)
+        J[..., blocks["terms"]] = terms.joint_jacobian(arm, q)[:, :, layout.terms.joints] * phi[:, None, :]
     if tool:
         end = slice(6 * n - 3, 6 * n)
         J[..., blocks[f"tool{tool + 1}"]] = J[..., end]
@@ -133,14 +142,15 @@ class Uncertainty:
 
     def to_dict(self) -> dict[str, Any]:
         L = self.layout
-        return {"layout": {"n": L.n, "base": L.base, "hand": L.hand, "tools": [list(t) for t in L.tools]},
+        return {"layout": {"n": L.n, "base": L.base, "hand": L.hand, "tools": [list(t) for t in L.tools], "terms": L.terms.to_dict()},
                 "nominal": self.nominal.to_dict(), "x": self.x.tolist(), "cov_factor": self.cov_factor.tolist(),
                 "prior_factor": self.prior_factor.tolist(), "noise_m": self.noise_m, "source": self.source}  # fmt: skip
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Uncertainty:
         L = d["layout"]
-        layout = Layout(int(L["n"]), base=bool(L["base"]), hand=bool(L["hand"]), tools=tuple(map(tuple, L["tools"])))
+        spec, _ = terms.parse(L.get("terms"), "uncertainty.json: layout.terms")
+        layout = Layout(int(L["n"]), base=bool(L["base"]), hand=bool(L["hand"]), tools=tuple(map(tuple, L["tools"])), terms=spec)
         arr = lambda k, cols: np.array(d[k], dtype=float).reshape(-1, cols) if cols is not None else np.array(d[k], dtype=float)
         K = layout.full_size
         return cls(layout, ZRPRobot.from_dict(d["nominal"]), arr("x", None), arr("cov_factor", None).reshape(K, -1),

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zrp_ga.core.schema import ProblemConf
-from zrp_ga.model import dh
+from zrp_ga.model import dh, terms
 from zrp_ga.model.cost import CalibrationProblem
 from zrp_ga.model.layout import Layout, dh_mask, fixed_summary, mask
 from zrp_ga.model.metrics import Judge
@@ -135,7 +135,38 @@ def masked(c: ProblemConf, layout: Layout, info: dict[str, Any] | None = None, r
     return out
 
 
-def half_ranges(c: ProblemConf, layout: Layout) -> Array:
+def with_terms(c: ProblemConf, layout: Layout, robot: ZRPRobot, info: dict[str, Any] | None = None) -> tuple[Layout, ZRPRobot]:
+    """``layout`` with the non-geometric terms ``problem.terms`` names (:func:`zrp_ga.model.terms.parse`)
+    and ``robot`` with the mass model they use (the robot's own, from its URDF's inertials or
+    robot file, else :func:`zrp_ga.model.terms.generic`; ``problem.terms.payload`` added); the
+    terms, the mass model's source and the payload go into ``info["terms"]``. Without terms: both
+    as they are."""
+    spec, payload = terms.parse(getattr(c, "terms", None), "problem.terms")
+    if not spec:
+        if payload is not None:
+            raise ValueError("problem.terms.payload: a payload acts through joint compliance; name the joints in problem.terms.compliance")
+        return layout, robot
+    spec.check(robot, "problem.terms")
+    mass = robot.mass or terms.generic(robot)
+    if payload is not None:
+        mass = mass.with_payload(*payload)
+    if info is not None:
+        info["terms"] = spec.to_dict() | {"names": spec.names, "mass_model": mass.source, "payload_kg": mass.payload_mass,
+                                          "payload_com_m": mass.payload_com.tolist()}  # fmt: skip
+    return dataclasses.replace(layout, terms=spec), robot.replace(mass=mass)
+
+
+def term_scales(problem_or_nominal: ZRPRobot, layout: Layout, q: Array) -> Array:
+    """Per term gene (F,), the largest size of its feature over the poses ``q`` (N m for a
+    compliance, 1 for a harmonic): a gene range of ``axis_error / scale`` lets the term turn
+    its joint by up to ``axis_error`` rad."""
+    if not layout.terms:
+        return np.zeros(0)
+    phi = terms.features(layout.terms, problem_or_nominal, q)
+    return np.maximum(np.abs(phi).max(axis=0), 1e-9)
+
+
+def half_ranges(c: ProblemConf, layout: Layout, term_scale: Array | None = None) -> Array:
     """Half widths (K,) of the gene ranges: ``axis_error`` on the axes and the hand (rad),
     ``body_error`` on the body vectors and the base point (m), times ``search_scale``. With a
     basis N (fixed DH parameters), gene k's is ``sum_j |N_jk| h_j`` over the full genome's
@@ -143,6 +174,8 @@ def half_ranges(c: ProblemConf, layout: Layout) -> Array:
     full = layout.unmasked
     half = np.empty(full.size)
     for name, block in full.blocks.items():
-        half[block] = c.axis_error if name in ("u0", "hand") else c.body_error
+        half[block] = c.axis_error if name in ("u0", "hand", "terms") else c.body_error
+    if full.terms:  # a term may turn its joint by up to axis_error (rad) over the poses
+        half[full.blocks["terms"]] /= np.ones(full.terms.size) if term_scale is None else term_scale
     half = np.abs(layout.matrix).T @ half if layout.is_masked else half
     return half * c.search_scale

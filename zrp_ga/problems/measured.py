@@ -43,7 +43,7 @@ from zrp_ga.model.metrics import Judge
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.registration import Registration, register
 from zrp_ga.model.robot import ZRPRobot
-from zrp_ga.problems import Task, half_ranges, identify, masked
+from zrp_ga.problems import Task, half_ranges, identify, masked, term_scales, with_terms
 from zrp_ga.problems.size import ProblemSize, calibration, file_rows
 
 log = logging.getLogger(__name__)
@@ -226,11 +226,13 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
     reg = register(robot, calib.q, calib.p, rotations=calib.R if c.use_orientation else None, tools=calib.tool,
                    tool_names=names)  # fmt: skip
     warnings = left_out + shared + _registration_warnings(robot, reg, calib)
-    nominal = reg.apply(robot)
     fixed_info: dict[str, Any] = {}
-    layout = masked(c, Layout(robot.n, base=True, hand=bool(c.use_orientation), tools=tuple(map(tuple, reg.tools[1:] - reg.tool)),
-                              known_tools=tuple(tuple(v - reg.tool) for v in known.values())), fixed_info)  # fmt: skip
-    half = gene_half_widths(layout, nominal, calib.q, reg, c) if c.ranges is Ranges.data else half_ranges(c, layout)
+    layout, robot_terms = with_terms(c, Layout(robot.n, base=True, hand=bool(c.use_orientation), tools=tuple(map(tuple, reg.tools[1:] - reg.tool)),
+                                               known_tools=tuple(tuple(v - reg.tool) for v in known.values())), robot, fixed_info)  # fmt: skip
+    nominal = reg.apply(robot_terms)  # the mass model (with gravity along the base's -z) turns into the instrument's frame
+    layout = masked(c, layout, fixed_info)
+    scale = term_scales(nominal, layout.unmasked, calib.q)
+    half = gene_half_widths(layout, nominal, calib.q, reg, c, scale) if c.ranges is Ranges.data else half_ranges(c, layout, scale)
     data = calib.for_calibration(c.use_orientation, c.use_weights)
     problem = CalibrationProblem(nominal, data, layout, -half, half, c.cost, c.norm, c.orientation_weight, c.kernel)
     setup = None
@@ -303,10 +305,12 @@ def _registration_warnings(robot: ZRPRobot, reg: Registration, calib: Measuremen
             f"{calib.units[0]} and {calib.units[1]})"]  # fmt: skip
 
 
-def gene_half_widths(layout: Layout, nominal: ZRPRobot, q: np.ndarray, reg: Registration, c: MeasuredConf) -> np.ndarray:
+def gene_half_widths(layout: Layout, nominal: ZRPRobot, q: np.ndarray, reg: Registration, c: MeasuredConf,
+                     term_scale: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """Half widths (K,) of the gene ranges from the registered arm's residuals (module
     docstring): body vectors, base point and tools ``e``, axis i ``e / L_i``, hand the largest
-    orientation residual; times ``search_scale``. Fixed genes: the free ones' widths."""
+    orientation residual; times ``search_scale``. Fixed genes: the free ones' widths. Terms
+    (``problem.terms``): ``axis_error / term_scale``, a joint turned by up to ``axis_error``."""
     free, layout = layout.free, layout.unmasked
     e = max(reg.max, 1e-6)
     J = error_model.pose_jacobians(nominal, q)[:, 3:, : 3 * layout.n]  # position rows, axis columns
@@ -316,6 +320,8 @@ def gene_half_widths(layout: Layout, nominal: ZRPRobot, q: np.ndarray, reg: Regi
     half[layout.blocks["u0"]] = np.repeat(np.minimum(e / np.maximum(lever, MIN_LEVER_M), MAX_AXIS_RAD / c.search_scale), 3)
     if layout.hand:
         half[layout.blocks["hand"]] = min(max(reg.max_angle or 0.0, 1e-6), MAX_AXIS_RAD / c.search_scale)
+    if layout.terms:
+        half[layout.blocks["terms"]] = c.axis_error / (np.ones(layout.terms.size) if term_scale is None else term_scale)
     return half[free] * c.search_scale
 
 
