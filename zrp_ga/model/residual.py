@@ -129,7 +129,7 @@ class Residual:
         t = np.exp(self.theta)
         return {"kernel": f"{self._gp.kernel_}", "signal_rms_mm": float(np.sqrt(t[0])) * self.y_scale * 1e3,
                 "noise_rms_mm": float(np.sqrt(t[-1])) * self.y_scale * 1e3,
-                "length_per_joint": (t[1:-1] * self.scale).tolist(), "poses": int(len(self.q))}  # fmt: skip
+                "length_per_joint": (t[1:-1] * self.scale).tolist(), "poses": len(self.q)}  # fmt: skip
 
     def to_dict(self) -> dict[str, Any]:
         """Everything :meth:`from_dict` needs, as plain numbers (no pickle)."""

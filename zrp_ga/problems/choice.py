@@ -116,7 +116,7 @@ class Folds:
     warning: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"scheme": self.scheme, "folds": [{"name": n, "held_out": int(len(h))} for n, h in zip(self.names, self.held)],
+        return {"scheme": self.scheme, "folds": [{"name": n, "held_out": len(h)} for n, h in zip(self.names, self.held)],
                 **({"warning": self.warning} if self.warning else {})}  # fmt: skip
 
 
