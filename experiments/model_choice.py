@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from zrp_ga import config
 from zrp_ga.core import targets
@@ -102,7 +103,9 @@ def main() -> None:
     args = parser.parse_args()
     RESULTS.mkdir(exist_ok=True)
     for name in args.protocol or list(PROTOCOLS):  # one file per protocol: they may run at once
-        (RESULTS / f"model_choice_{name}.json").write_text(json.dumps(study(name), indent=1))
+        with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread: as the runs (zrp_ga.run.execute)
+            result = study(name)
+        (RESULTS / f"model_choice_{name}.json").write_text(json.dumps(result, indent=1))
     done = {n: json.loads(f.read_text()) for n in PROTOCOLS if (f := RESULTS / f"model_choice_{n}.json").exists()}
     lines = ["# Model choice on the UR10 data (issue 30)", "",
              "Command: `nice python experiments/model_choice.py`. Position errors in mm. The candidates are fixed in the "

@@ -92,11 +92,12 @@ class Residual:
         import warnings
 
         from sklearn.exceptions import ConvergenceWarning
+        from threadpoolctl import threadpool_limits
 
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), threadpool_limits(limits=1, user_api="blas"):  # as the runs (zrp_ga.run.execute)
             warnings.simplefilter("ignore", ConvergenceWarning)  # a length on its bound: the joint does not matter
             theta = _regressor(_kernel(q.shape[1]), True).fit(x[::step], y[::step]).kernel_.theta
-        return cls._conditioned(q, r, centre, scale, y_scale, theta)
+            return cls._conditioned(q, r, centre, scale, y_scale, theta)
 
     @classmethod
     def _conditioned(cls, q: Array, r: Array, centre: Array, scale: Array, y_scale: float, theta: Array) -> Residual:
