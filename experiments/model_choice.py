@@ -14,7 +14,10 @@ every joint (orders 1 and 3), which extrapolate with full amplitude. The choice
 joint values only; each candidate is then fitted on the whole calibration set and validated once,
 for the table. Writes results/model_choice.md and results/model_choice_PROTOCOL.json. Run:
 
-    nice python experiments/model_choice.py [--protocol b_to_c|c_70_30]   (both: about 30 min on 2 busy cores)
+    nice python experiments/model_choice.py [--protocol b_to_c|c_70_30] [--only CANDIDATE ...]
+
+(``--only``: a part of a protocol's table, for running parts at once; the page joins the parts
+and chooses over the whole table.)
 
 Data: Landgraf, Ernst, Schleth, Fabritius and Huber, "A Hybrid Neural Network Approach for
 Increasing the Absolute Accuracy of Industrial Robots", IEEE CASE 2021, pp. 468-474
@@ -50,9 +53,11 @@ PROTOCOLS = {
 TITLES = {"b_to_c": "UR10 series B -> series C", "c_70_30": "UR10 series C split 70/30 (seed 0)"}
 
 
-def study(name: str) -> dict:
-    """The choice and every candidate's validation figure in protocol ``name``."""
+def study(name: str, only: list[str] | None = None) -> dict:
+    """The choice and every candidate's validation figure in protocol ``name`` (``only``: these
+    candidates, a part of the table that :func:`merged` joins with the others')."""
     over, cands = PROTOCOLS[name]
+    cands = [c for c in cands if only is None or c.name in only]
     cfg = config.load([*over, "progress=false"])
     robot = targets.create(cfg.robot, "robot")
     c = cfg.problem
@@ -60,7 +65,8 @@ def study(name: str) -> dict:
     calib = calib.with_tool_names(calib.tool_names or ("tool",))
     t0 = time.time()
     fit = measured.refit(robot, c)
-    picked = choice.select(fit, calib, cands, val.q, progress=lambda line: print(f"  [{name}] {line}", flush=True))
+    scheme = choice.folds(calib.q, val.q)
+    rows = choice.cross_validate(fit, calib, cands, scheme, progress=lambda line: print(f"  [{name}] {line}", flush=True))
     cv_s = time.time() - t0
     val_rms = {}
     shared: dict = {}
@@ -72,7 +78,25 @@ def study(name: str) -> dict:
         val_rms[cand.name] = float(np.sqrt(np.mean(np.sum((val.p - f.predict(val)) ** 2, axis=1)))) * 1e3
         print(f"  [{name}] validation {cand.name}: {val_rms[cand.name]:.4g} mm", flush=True)
     return {"protocol": name, "overrides": over, "calibration_poses": calib.M, "validation_poses": val.M,
-            **picked.to_dict(), "validation_rms_mm": val_rms, "cv_wall_s": cv_s, "wall_s": time.time() - t0}  # fmt: skip
+            "folds": scheme.to_dict(), "cross_validation": rows, "validation_rms_mm": val_rms, "cv_wall_s": cv_s,
+            "wall_s": time.time() - t0}  # fmt: skip
+
+
+def merged(name: str) -> dict | None:
+    """The parts of protocol ``name`` joined, in the candidates' fixed order, and the choice
+    over the whole table (:func:`zrp_ga.problems.choice.choose`, the rule ``problem.model=auto``
+    uses); None when a candidate has no figures yet."""
+    parts = [json.loads(f.read_text()) for f in sorted(RESULTS.glob(f"model_choice_{name}*.json"))]
+    if not parts:
+        return None
+    rows = {row["name"]: row for part in parts for row in part["cross_validation"]}
+    val = {k: v for part in parts for k, v in part["validation_rms_mm"].items()}
+    order = [c.name for c in PROTOCOLS[name][1]]
+    missing = [n for n in order if n not in rows]
+    table = [rows[n] for n in order if n in rows]
+    chosen, why = choice.choose(table)
+    return {**parts[0], "cross_validation": table, "validation_rms_mm": val, "chosen": table[chosen]["name"], "why": why,
+            "missing": missing, "cv_wall_s": sum(p["cv_wall_s"] for p in parts), "wall_s": sum(p["wall_s"] for p in parts)}  # fmt: skip
 
 
 def table(r: dict) -> list[str]:
@@ -84,12 +108,14 @@ def table(r: dict) -> list[str]:
              f"({', '.join(f['name'] + ': ' + str(f['held_out']) for f in r['folds']['folds'])}).", ""]  # fmt: skip
     if "warning" in r["folds"]:
         lines += [f"> Warning: {r['folds']['warning']}", ""]
-    lines += ["| candidate | CV RMS, mm | CV per fold, mm | fit RMS, mm | validation RMS, mm | chosen |", "|---|---:|---|---:|---:|---|"]
+    lines += ["| candidate | CV RMS, mm | CV per fold, mm | fit RMS, mm | validation RMS, mm | chosen |", "|---|---:|---|---:|---:|---|"]  # fmt: skip
     for row in r["cross_validation"]:
         n = row["name"]
         folds = " / ".join(f"{v:.3f}" for v in row["fold_rms_mm"])
         lines.append(f"| {n} | {row['cv_rms_mm']:.3f} | {folds} | {row['fit_rms_mm']:.3f} | {r['validation_rms_mm'][n]:.3f} | "
                      f"{'**yes**' if n == chosen else ''} |")  # fmt: skip
+    if r.get("missing"):
+        lines += ["", f"Not computed (yet): {', '.join(r['missing'])}; the choice is over the rows above."]
     v = r["validation_rms_mm"][chosen]
     lines += ["", f"Chosen: **{chosen}**, {r['why']}. Its validation RMS: {v:.3f} mm against the geometric model's {geo:.3f} mm "
               f"({'not worse' if v <= geo else 'WORSE'}). Cross-validation {r['cv_wall_s']:.0f} s, all {r['wall_s']:.0f} s "
@@ -100,13 +126,15 @@ def table(r: dict) -> list[str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--protocol", choices=sorted(PROTOCOLS), action="append")
+    parser.add_argument("--only", action="append", help="these candidates only (a part of the table; repeat)")
     args = parser.parse_args()
     RESULTS.mkdir(exist_ok=True)
-    for name in args.protocol or list(PROTOCOLS):  # one file per protocol: they may run at once
+    for name in args.protocol or list(PROTOCOLS):  # one file per protocol (and part): they may run at once
         with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread: as the runs (zrp_ga.run.execute)
-            result = study(name)
-        (RESULTS / f"model_choice_{name}.json").write_text(json.dumps(result, indent=1))
-    done = {n: json.loads(f.read_text()) for n in PROTOCOLS if (f := RESULTS / f"model_choice_{n}.json").exists()}
+            result = study(name, args.only)
+        part = "" if args.only is None else "_" + "_".join(n.split()[0] + "".join(ch for ch in n if ch.isdigit()) for n in args.only)  # fmt: skip
+        (RESULTS / f"model_choice_{name}{part}.json").write_text(json.dumps(result, indent=1))
+    done = {n: r for n in PROTOCOLS if (r := merged(n)) is not None}
     lines = ["# Model choice on the UR10 data (issue 30)", "",
              "Command: `nice python experiments/model_choice.py`. Position errors in mm. The candidates are fixed in the "
              "script before any figure; the choice sees the calibration data (cross-validation, the geometry refitted "

@@ -98,3 +98,39 @@ def test_the_choice_never_reads_the_validation_points(rng, monkeypatch):
     assert clean["chosen"] == "geometric+gp"  # the smooth error is what the residual model is for
     for p in seen:  # every fold fitted calibration rows only
         assert len(p) < calib.M and all(np.any(np.all(np.isclose(calib.p, row), axis=1)) for row in p)
+
+
+def test_a_run_with_a_residual_model_writes_it_and_validates_with_it(rng, tmp_path):
+    """The run's validation RMS is that of the instrument-frame model it writes plus the residual
+    model read back from residual.json, recomputed here from the files."""
+    import json
+
+    import pandas as pd
+
+    from zrp_ga import config
+    from zrp_ga.io.robot_files import read_robot
+    from zrp_ga.model.residual import Residual
+    from zrp_ga.run import execute
+
+    arm = robots.get("ur10").with_tool([0.0, 0.0, 0.1])
+    arm = arm.replace(b0=arm.b0 + rng.normal(scale=1e-3, size=arm.b0.shape))  # geometric errors as well
+    for name, M in (("cal", 80), ("val", 40)):
+        m = _measured(rng, M, arm)
+        df = pd.DataFrame(m.q, columns=[f"q{i}" for i in range(1, 7)])
+        df[["x", "y", "z"]] = m.p
+        df.to_csv(tmp_path / f"{name}.csv", index=False)
+    over = ["problem=measured", "robot=ur10", f"problem.calibration_file={tmp_path / 'cal.csv'}", "problem.length_unit=m",
+            f"problem.validation_file={tmp_path / 'val.csv'}", "algorithm=lm", "progress=false",
+            "problem.model=[geometric,geometric+gp]"]  # fmt: skip
+    execute.run(config.load(over), tmp_path / "run")
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert s["problem"]["model"]["chosen"] == "geometric+gp" and len(s["problem"]["model"]["cross_validation"]) == 2
+    gp = Residual.read(tmp_path / "run")
+    val = pd.read_csv(tmp_path / "val.csv")
+    q, p = val[[f"q{i}" for i in range(1, 7)]].to_numpy(), val[["x", "y", "z"]].to_numpy()
+    model = read_robot(tmp_path / "run" / measured.INSTRUMENT_MODEL)
+    predicted = kinematics.forward(model, q)[1] + gp.predict(q)
+    rms_mm = np.sqrt(np.mean(np.sum((p - predicted) ** 2, axis=1))) * 1e3
+    assert s["validation_rms_mm"]["calibrated"] == pytest.approx(rms_mm, rel=1e-6)
+    geometric = np.sqrt(np.mean(np.sum((p - kinematics.forward(model, q)[1]) ** 2, axis=1))) * 1e3
+    assert rms_mm < 0.5 * geometric  # the residual model does the work here

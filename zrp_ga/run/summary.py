@@ -197,9 +197,9 @@ def judged(task: Task, result: Result) -> tuple[dict, np.ndarray]:
     worse = worse_than_nominal(result, nominal_cost) or worse_val or a.predicted_worse
     returned = "nominal" if task.returns_nominal and worse else "optimiser"
     x, final_cost = (zero, nominal_cost) if returned == "nominal" else (found, result.cost)
-    if returned == "nominal":
-        task.fit_residual(None)
-    after = before if returned == "nominal" else at_found
+    if returned == "nominal":  # the residual model, if any, on the nominal arm's residuals
+        task.fit_residual(zero)
+    after = judge.validation_errors(zero, corrected=True) if returned == "nominal" else at_found
     val_rms = {"nominal": float(before[0][0]) * 1e3, "calibrated": float(after[0][0]) * 1e3}
     return {
         "final_cost": final_cost,
