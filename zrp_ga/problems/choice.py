@@ -133,7 +133,11 @@ def folds(q: Array, targets: Array | None = None, k: int = K_FOLDS, seed: int = 
     held, names = [], []
     for j, end, share in ends:
         width = hi[j] - lo[j]
-        rows = np.flatnonzero(q[:, j] <= lo[j] + EXTREME * width) if end == "low" else np.flatnonzero(q[:, j] >= hi[j] - EXTREME * width)
+        rows = (
+            np.flatnonzero(q[:, j] <= lo[j] + EXTREME * width)
+            if end == "low"
+            else np.flatnonzero(q[:, j] >= hi[j] - EXTREME * width)
+        )
         if len(rows) < MIN_HELD * len(q):  # a thin tail: the extreme 20% of the poses by value
             cut = np.quantile(q[:, j], EXTREME if end == "low" else 1 - EXTREME)
             rows = np.flatnonzero(q[:, j] <= cut) if end == "low" else np.flatnonzero(q[:, j] >= cut)
@@ -154,7 +158,10 @@ def beyond_ends(q: Array, targets: Array) -> list[tuple[int, str, float]]:
     slack = 0.01 * np.maximum(hi - lo, 1e-9)
     out = []
     for j in range(q.shape[1]):
-        for end, share in (("low", np.mean(targets[:, j] < lo[j] - slack[j])), ("high", np.mean(targets[:, j] > hi[j] + slack[j]))):
+        for end, share in (
+            ("low", np.mean(targets[:, j] < lo[j] - slack[j])),
+            ("high", np.mean(targets[:, j] > hi[j] + slack[j])),
+        ):
             if share > OUTSIDE_SHARE:
                 out.append((j, end, float(share)))
     return out
