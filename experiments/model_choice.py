@@ -100,7 +100,7 @@ def merged(name: str) -> dict | None:
 
 
 def table(r: dict) -> list[str]:
-    geo = r["validation_rms_mm"]["geometric"]
+    geo = r["validation_rms_mm"].get("geometric", float("nan"))
     chosen = r["chosen"]
     lines = [f"## {TITLES[r['protocol']]}", "",
              f"Overrides: `{' '.join(r['overrides'])}`; {r['calibration_poses']} calibration poses, {r['validation_poses']} "
@@ -118,7 +118,7 @@ def table(r: dict) -> list[str]:
         lines += ["", f"Not computed (yet): {', '.join(r['missing'])}; the choice is over the rows above."]
     v = r["validation_rms_mm"][chosen]
     lines += ["", f"Chosen: **{chosen}**, {r['why']}. Its validation RMS: {v:.3f} mm against the geometric model's {geo:.3f} mm "
-              f"({'not worse' if v <= geo else 'WORSE'}). Cross-validation {r['cv_wall_s']:.0f} s, all {r['wall_s']:.0f} s "
+              f"({'not worse' if v <= geo else 'WORSE' if v > geo else 'geometric not computed'}). Cross-validation {r['cv_wall_s']:.0f} s, all {r['wall_s']:.0f} s "
               "(2 cores shared with other sessions).", ""]  # fmt: skip
     return lines
 
