@@ -106,7 +106,10 @@ def test_harmonics_match_a_plain_chain_with_the_offsets_added():
         np.testing.assert_allclose(R, R0, atol=1e-13)
 
 
-def _problem(seed=0, spec=terms.TermSpec((2, 3), (1,), 1), M=40, noise=0.0):
+SPEC = terms.TermSpec((2, 3), (1,), 1)
+
+
+def _problem(seed=0, spec=SPEC, M=40, noise=0.0):
     robot, rng = _arm6(seed)
     layout = Layout(6, base=True, hand=True, terms=spec)
     x = np.concatenate([rng.normal(0, 3e-4, layout.size - spec.size), np.zeros(spec.size)])
@@ -228,3 +231,69 @@ def test_bad_terms_settings_are_one_line_naming_the_key(value, message):
     with pytest.raises(ValueError, match=message) as info:
         with_terms(C(), Layout(6), presets.get("puma560"))
     assert "problem.terms" in str(info.value) and "\n" not in str(info.value)
+
+
+PLANAR_URDF = """<?xml version="1.0"?>
+<robot name="planar">
+  <link name="base"><inertial><mass value="50"/><origin xyz="0 0 0.1"/></inertial></link>
+  <link name="upper"><inertial><mass value="3.0"/><origin xyz="0.35 0 0"/></inertial></link>
+  <link name="fore"><inertial><mass value="2.0"/><origin xyz="0.25 0 0"/></inertial></link>
+  <link name="tool"><inertial><mass value="1.5"/><origin xyz="0.1 0 0"/></inertial></link>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/><origin xyz="0 0 0.3"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="0" velocity="0"/></joint>
+  <joint name="elbow" type="revolute"><parent link="upper"/><child link="fore"/><origin xyz="0.7 0 0"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="0" velocity="0"/></joint>
+  <joint name="flange" type="fixed"><parent link="fore"/><child link="tool"/><origin xyz="0.5 0 0"/></joint>
+</robot>
+"""
+
+
+def test_urdf_inertials_give_the_mass_model_and_the_hand_torques(tmp_path):
+    from zrp_ga.io.robot_files import read_robot
+
+    path = tmp_path / "planar.urdf"
+    path.write_text(PLANAR_URDF)
+    robot = read_robot(path)
+    assert robot.mass is not None and "URDF inertials" in robot.mass.source
+    # the base's 50 kg moves with no joint; the tool's 1.5 kg at 0.1 m beyond the end point rides on the elbow
+    L1, L2, m1, m2, mt, d = 0.7, 0.5, 3.0, 2.0, 1.5, 0.1
+    q = np.array([[0.3, -0.8], [1.2, 0.4]])
+    c1, c12 = np.cos(q[:, 0]), np.cos(q.sum(axis=1))
+    tau2 = G * (m2 * L2 / 2 * c12 + mt * (L2 + d) * c12)
+    tau1 = G * (m1 * L1 / 2 * c1 + m2 * (L1 * c1 + L2 / 2 * c12) + mt * (L1 * c1 + (L2 + d) * c12))
+    np.testing.assert_allclose(terms.gravity_torques(robot, q), np.column_stack([tau1, tau2]), rtol=1e-12)
+
+
+def test_calibrate_takes_terms_and_every_file_names_them(tmp_path):
+    import json
+
+    import pandas as pd
+
+    import zrp_ga
+
+    cal = zrp_ga.calibrate("puma560", problem={"n_poses": 30, "cost": "nonlinear"}, algorithm="lm",
+                           terms={"compliance": [2, 3], "harmonics": {"order": 1, "joints": [1]}}, out=tmp_path)  # fmt: skip
+    names = ["compliance_2", "compliance_3", "harmonic_1_sin1", "harmonic_1_cos1"]
+    assert cal.robot.terms.spec.names == names and cal.task.layout.names[-4:] == names
+    params = pd.read_csv(tmp_path / "best_params.csv")
+    rows = params.set_index("joint").loc[names]
+    assert rows["term_unit"].tolist() == ["rad/(N m)", "rad/(N m)", "rad", "rad"]
+    np.testing.assert_allclose(rows["term_value"], cal.robot.terms.values)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["problem"]["terms"]["names"] == names and "generic" in summary["problem"]["terms"]["mass_model"]
+    back = ZRPRobot.from_yaml(tmp_path / "calibrated_robot.yaml")
+    np.testing.assert_array_equal(back.terms.values, cal.robot.terms.values)
+    assert "geometric part" in (tmp_path / "calibrated_robot.urdf").read_text()
+    unc = json.loads((tmp_path / "uncertainty.json").read_text())
+    assert unc["layout"]["terms"] == {"compliance": [2, 3], "harmonics": {"order": 1, "joints": [1]}}
+
+
+@pytest.mark.slow
+def test_the_population_optimisers_carry_the_term_genes():
+    import zrp_ga
+
+    for algorithm in ("ga", "cmaes"):
+        cal = zrp_ga.calibrate("puma560", problem={"n_poses": 20, "cost": "nonlinear"}, algorithm=algorithm,
+                               population={"mu": 8, "lambda_": 8, "generations": 3}, terms={"compliance": [2]})  # fmt: skip
+        assert cal.task.layout.names[-1] == "compliance_2"
+        assert np.isfinite(cal.summary["final_cost"]) and cal.robot.terms is not None

@@ -121,6 +121,11 @@ def _overrides(algorithm: str, seed: int, settings: dict[str, Any]) -> list[str]
 
 
 def _value(v: Any) -> str:
+    """A value in Hydra's override grammar (mappings and lists too: ``{compliance:[2,3]}``)."""
+    if isinstance(v, dict):
+        return "{" + ",".join(f"{k}:{_value(x)}" for k, x in v.items()) + "}"
+    if isinstance(v, (list, tuple)):
+        return "[" + ",".join(_value(x) for x in v) + "]"
     return "null" if v is None else str(v).lower() if isinstance(v, bool) else str(v)
 
 
@@ -145,7 +150,7 @@ def _check_keys(settings: dict[str, Any], cfg: dict[str, Any], where: str = "") 
             hint = f"; did you mean {' or '.join(map(repr, close))}?" if close else f"; valid: {', '.join(valid)}"
             name = f"key {key!r} in {where}{{...}}" if where else f"keyword argument {key!r}"
             raise TypeError(f"calibrate() got an unexpected {name}{hint}")
-        if isinstance(value, dict):
+        if isinstance(value, dict) and cfg[key] is not None:  # (a setting that is null by default may take a mapping: problem.terms)
             if not isinstance(cfg[key], dict):
                 raise TypeError(f"calibrate(): {where}{key} is a single setting, not a dict of settings")
             _check_keys(value, cfg[key], f"{where}{key}=")
@@ -160,6 +165,7 @@ def calibrate(
     seed: int | Sequence[int] = 0,
     out: str | Path | None = None,
     progress: bool = False,
+    terms: dict | None = None,
     **settings: Any,
 ) -> Calibration | list[Calibration]:
     """Calibrate ``robot`` (a :class:`ZRPRobot`, a preset name or a robot file) on ``data``
@@ -175,6 +181,10 @@ def calibrate(
     (one ValueError naming the row, counted from 0, and the column) and are in the units of
     ``problem={"length_unit": ..., "angle_unit": ...}``: ``auto`` (the default) detects metres or
     millimetres, radians or degrees, and converts.
+
+    ``terms``: non-geometric terms fitted with the geometry (``problem.terms``,
+    :mod:`zrp_ga.model.terms`), e.g. ``{"compliance": [2, 3], "harmonics": {"order": 1, "joints":
+    [1]}, "payload": {"mass": 5.0, "com": [0, 0, 0.1]}}``; the calibrated robot carries them.
 
     ``algorithm``: ``"ga"``, ``"lm"`` or ``"cmaes"``; ``settings``: any setting of ``zrp-ga``,
     e.g. ``population={"mu": 50, "generations": 30}``, ``crossover="sbx"``,
@@ -199,6 +209,11 @@ def calibrate(
     >>> bool(cal.summary["validation_rms_mm"]["calibrated"] < 1e-6), cal.task.info["units"]
     (True, {'length': 'mm', 'joint_angle': 'deg'})
     """
+    if terms is not None:
+        chosen = settings.get("problem")
+        if isinstance(chosen, str):
+            raise ValueError(f"calibrate(): terms= with problem={chosen!r}: give the problem's settings as problem={{...}} instead")
+        settings = {**settings, "problem": {**(chosen or {}), "terms": terms}}
     with errors.python_warnings():
         if isinstance(seed, (int, np.integer)):
             return _calibrate(robot, data, validation, algorithm, [int(seed)], None if out is None else [out], progress, settings)[0]

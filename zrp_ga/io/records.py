@@ -34,7 +34,8 @@ def versions() -> dict[str, str]:
 def params_by_joint(layout: Layout, x: np.ndarray, truth: np.ndarray | None = None) -> list[dict]:
     """Parameter errors by joint (Table 3 style): ``du0_x..z`` of joint i and ``db0_x..z`` of
     ``b0_{i+1}`` (m); extra rows ``base`` (db0_1), ``hand`` (rotation vector, rad) and ``tool2`` ..
-    (the other tools' last body vectors, m); the true
+    (the other tools' last body vectors, m); with non-geometric terms, a row per term (its name,
+    ``term_value`` and ``term_unit``: rad/(N m) for a compliance, rad for a harmonic); the true
     errors in ``true_*`` columns when known. With fixed genes (zero: nominal), a ``fixed`` column
     names them per row."""
     x, truth = layout.expand(x), None if truth is None else layout.expand(truth)
@@ -48,18 +49,27 @@ def params_by_joint(layout: Layout, x: np.ndarray, truth: np.ndarray | None = No
         for name, cols in [("base", b_cols), ("hand", u_cols)] + [(k, b_cols) for k in blocks if k.startswith("tool")]:
             if name in blocks:
                 rows.append({"joint": name, **dict.fromkeys(u_cols + b_cols, ""), **dict(zip(cols, v[blocks[name]]))})
+        if layout.terms:  # one row per non-geometric term: its value in term_value, its unit in term_unit
+            for row in rows:
+                row.update(term_value="", term_unit="")
+            for name, value in zip(layout.terms.names, v[blocks["terms"]]):
+                unit = "rad/(N m)" if name.startswith("compliance_") else "rad"
+                rows.append({"joint": name, **dict.fromkeys(u_cols + b_cols, ""), "term_value": value, "term_unit": unit})
         return rows
 
     out = table(np.asarray(x, dtype=float))
     if fixed:
         for row in out:
             j = row["joint"]
+            if j in layout.terms.names:
+                row["fixed"] = j if j in fixed else ""
+                continue
             genes = {"base": ["b0_1{}"], "hand": ["rh_{}"]}.get(j) or (
                 [f"u0_{j}{{}}", f"b0_{int(j) + 1}{{}}"] if j.isdigit() else [f"b0_{n + 1}{{}}_{j}"])  # fmt: skip
             row["fixed"] = " ".join(g.format(c) for g in genes for c in "xyz" if g.format(c) in fixed)
     if truth is not None:
         for row, true in zip(out, table(np.asarray(truth, dtype=float))):
-            row.update({f"true_{k}": v for k, v in true.items() if k != "joint"})
+            row.update({f"true_{k}": v for k, v in true.items() if k not in ("joint", "term_unit")})
     return out
 
 

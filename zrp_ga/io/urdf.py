@@ -107,7 +107,45 @@ def read_urdf(
     text = path.read_text() if text is None else text
     urdf = _parse(path, text)
     chain, base, tip = _chain(path, urdf, base_link, tip_link)
-    return _zrp(path, urdf.name, chain, base, tip, URDFSource(str(path), text, base, tip))
+    robot = _zrp(path, urdf.name, chain, base, tip, URDFSource(str(path), text, base, tip))
+    mass = mass_model(path, urdf, chain, robot)
+    return robot if mass is None else robot.replace(mass=mass)
+
+
+def mass_model(path: Path, urdf: _Urdf, chain: list[_Joint], robot: ZRPRobot):
+    """The arm's mass model (:class:`zrp_ga.model.terms.MassModel`) from the ``<inertial>``
+    elements of the links the chain moves: each link's mass at its centre (``<origin xyz>`` in the
+    link's frame) at q = 0, summed into the joint that moves it (the last movable joint before it;
+    links before the first movable joint carry no torque and are left out); None when no moved
+    link has a mass."""
+    from zrp_ga.model.terms import MassModel
+
+    elements = {link.get("name"): link for link in urdf.root.findall("link")}
+    n, T, k = robot.n, np.eye(4), -1
+    masses, moments = np.zeros(n), np.zeros((n, 3))
+    for joint in chain:
+        T = T @ joint.origin
+        if joint.type != "fixed":
+            k += 1
+        inertial = elements[joint.child].find("inertial") if joint.child in elements else None
+        if k < 0 or inertial is None or inertial.find("mass") is None:
+            continue
+        try:
+            m = float(inertial.find("mass").get("value"))
+            origin = inertial.find("origin")
+            xyz = np.array([float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()])
+        except (TypeError, ValueError):
+            raise ValueError(f"{path}, line {inertial.sourceline}: link {joint.child!r}: <inertial> needs <mass value=...> "
+                             "and <origin xyz='x y z'> numbers") from None  # fmt: skip
+        if xyz.shape != (3,) or not (np.isfinite(m) and m >= 0 and np.all(np.isfinite(xyz))):
+            raise ValueError(f"{path}, line {inertial.sourceline}: link {joint.child!r}: <inertial>: a mass >= 0 and 3 finite numbers xyz")
+        masses[k] += m
+        moments[k] += m * (T[:3, :3] @ xyz + T[:3, 3])
+    if not masses.any():
+        return None
+    points = np.cumsum(robot.b0[:n], axis=0)  # the point on each axis at q = 0
+    centres = np.where(masses[:, None] > 0, moments / np.where(masses > 0, masses, 1.0)[:, None], points) - points
+    return MassModel(masses, centres, source=f"URDF inertials ({path.name})")
 
 
 def _parse(path: Path, text: str) -> _Urdf:

@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga.model.robot import ZRPRobot
-from zrp_ga.model.terms import TermSpec, Terms
+from zrp_ga.model.terms import Terms, TermSpec
 
 Array = NDArray[np.float64]
 
@@ -111,7 +111,7 @@ class Layout:
     basis: Array | None = dataclasses.field(default=None, compare=False, repr=False)
     dh_fixed: tuple[str, ...] = ()
     dual: Array | None = dataclasses.field(default=None, compare=False, repr=False)
-    terms: TermSpec = TermSpec()
+    terms: TermSpec = dataclasses.field(default_factory=TermSpec)
 
     def __post_init__(self) -> None:
         for name in ("tools", "known_tools"):
@@ -392,6 +392,8 @@ def valid_names(layout: Layout) -> str:
     parts += ["base"] * layout.base + ["hand (hand orientation)"] * layout.hand
     if layout.tools:
         parts.append(f"tools (tool2..tool{layout.n_tools})")
+    if layout.terms:
+        parts.append(f"compliance, harmonics or one term ({', '.join(layout.terms.names)})")
     parts.append("or one component such as b0_3x")
     return ", ".join(parts)
 
