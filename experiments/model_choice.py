@@ -119,7 +119,7 @@ def table(r: dict) -> list[str]:
     v = r["validation_rms_mm"][chosen]
     lines += ["", f"Chosen: **{chosen}**, {r['why']}. Its validation RMS: {v:.3f} mm against the geometric model's {geo:.3f} mm "
               f"({'not worse' if v <= geo else 'WORSE' if v > geo else 'geometric not computed'}). Cross-validation {r['cv_wall_s']:.0f} s, all {r['wall_s']:.0f} s "
-              "(2 cores shared with other sessions).", ""]  # fmt: skip
+              "(summed over the parts run at once; 2 cores shared with other sessions, load average 15-24).", ""]  # fmt: skip
     return lines
 
 
@@ -127,9 +127,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--protocol", choices=sorted(PROTOCOLS), action="append")
     parser.add_argument("--only", action="append", help="these candidates only (a part of the table; repeat)")
+    parser.add_argument("--page", action="store_true", help="only write the page from the results' JSON files")
     args = parser.parse_args()
     RESULTS.mkdir(exist_ok=True)
-    for name in args.protocol or list(PROTOCOLS):  # one file per protocol (and part): they may run at once
+    for name in [] if args.page else args.protocol or list(PROTOCOLS):  # one file per protocol (and part): they may run at once
         with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread: as the runs (zrp_ga.run.execute)
             result = study(name, args.only)
         part = "" if args.only is None else "_" + "_".join(n.split()[0] + "".join(ch for ch in n if ch.isdigit()) for n in args.only)  # fmt: skip
