@@ -120,6 +120,10 @@ class Residual:
         s = np.atleast_2d(s.T).T[:, 0] if s.ndim > 1 else s
         return mean * self.y_scale, np.sqrt(np.maximum(s**2 - self.noise, 0.0)) * self.y_scale
 
+    def correction(self, q: ArrayLike) -> Array:
+        """The correction (M, 3) m at poses ``q`` (M, n): the posterior mean."""
+        return self._gp.predict((np.atleast_2d(np.asarray(q, dtype=float)) - self.centre) / self.scale) * self.y_scale
+
     @property
     def noise(self) -> float:
         """The white noise's variance, in normalised output units."""

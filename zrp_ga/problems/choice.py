@@ -78,6 +78,7 @@ def candidates(model: Any, terms: Any = None) -> list[Candidate]:
     with its own terms). Bad names: one line naming the setting."""
     if model is None or model == "geometric":
         return [Candidate("geometric")]
+    names: list[Any]
     if model == "auto":
         names = list(NAMES) if terms else list(NAMES[:2])
     elif isinstance(model, str):

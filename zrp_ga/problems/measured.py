@@ -83,7 +83,7 @@ class MeasuredTask(Task):
         if not self.gp:
             return
         self.residual = None if x is None else choice.residual_model(self, x, self.sets["calibration"])
-        self.judge.correction = None if self.residual is None else self.residual.predict
+        self.judge.correction = None if self.residual is None else self.residual.correction
 
     def errors(self, x: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Position errors (m) of every pose of each set, nominal and calibrated (the validation
