@@ -264,7 +264,7 @@ def _calibrate(robot: ZRPRobot | str | Path, data: MeasurementData | None, valid
         conf = schema.section(MeasuredConf, base.problem, "problem")
         calib, val = _measurements(data, arm, conf, "data"), _measurements(validation, arm, conf, "validation")
         budget.check_config(base, arm, problem=measured.data_size(arm, conf, calib, val))  # before the work: one line
-        task = measured.from_measurements(arm, calib, val, conf)
+        task = measured.chosen(arm, calib, val, conf, seeds[0])  # problem.model: the model named or chosen
     else:
         budget.check_config(base, arm)  # the problem of the config, before it is built
     cache = Cache()  # the instance is the one built here, not the config's

@@ -300,6 +300,7 @@ class MeasuredConf(ProblemConf):
     use_orientation: Optional[bool] = None  # fit measured orientations (and the hand orientation); null: when the file has them
     use_weights: bool = False  # weight position errors by the rows' standard deviations
     ranges: Ranges = Ranges.data  # gene ranges: data (x search_scale) or fixed (axis_error, body_error x search_scale)
+    model: Optional[Any] = "geometric"  # geometric, auto (chosen by cross-validation) or a list of candidates (zrp_ga.problems.choice)
 
     def check(self, key: str = "problem") -> None:
         super().check(key)

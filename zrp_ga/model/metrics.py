@@ -11,6 +11,7 @@ layout's ``known_tools``)."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -44,7 +45,7 @@ def predicted_positions(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: M
 
 
 def position_errors(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: Measurements, registration: str = "none",
-                    each: bool = False) -> Array:  # fmt: skip
+                    each: bool = False, correction: Callable[[Array], Array] | None = None) -> Array:  # fmt: skip
     """Distance (m) between measured and predicted positions at every pose of ``data``: (M,) for
     one genome (K,), (P, M) for a population (P, K); NaN where the genes break the model. With
     ``registration="rigid"`` each genome's predictions are first moved rigidly onto the
@@ -54,6 +55,8 @@ def position_errors(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: Measu
     X = np.asarray(X, dtype=float)
     with np.errstate(all="ignore"):
         p = predicted_positions(layout, nominal, X, data, each)
+        if correction is not None:  # a residual model's correction (M, 3) m at the poses (zrp_ga.model.residual)
+            p = p + correction(data.q)[None]
         if registration == "rigid":
             from zrp_ga.model.registration import align  # imported for this choice only
 
@@ -79,15 +82,18 @@ class Judge:
     truth: Array | None = None
     projector: Array | None = None  # onto the identifiable parameter directions (for param_err)
     registration: str = "none"  # of the predictions onto the validation poses (module docstring)
+    correction: Callable[[Array], Array] | None = None  # a residual model's (M, 3) m at poses (M, n): added when asked
 
-    def validation_errors(self, x: ArrayLike, each: bool = False) -> tuple[Array, Array]:
+    def validation_errors(self, x: ArrayLike, each: bool = False, corrected: bool = False) -> tuple[Array, Array]:
         """RMS and max position error (m) on the validation poses, each (P,); NaN without them.
-        ``each``: every genome's exactly as judged alone (:meth:`zrp_ga.model.layout.Layout.unpack`)."""
+        ``each``: every genome's exactly as judged alone (:meth:`zrp_ga.model.layout.Layout.unpack`);
+        ``corrected``: with the residual model's :attr:`correction` (fitted to the final genome)."""
         X = np.atleast_2d(np.asarray(x, dtype=float))
         if self.validation is None:
             nan = np.full(X.shape[0], np.nan)
             return nan, nan
-        err = position_errors(self.layout, self.nominal, X, self.validation, self.registration, each)
+        err = position_errors(self.layout, self.nominal, X, self.validation, self.registration, each,
+                              self.correction if corrected else None)  # fmt: skip
         return np.sqrt(np.mean(err**2, axis=1)), np.max(err, axis=1)
 
     def param_error(self, x: ArrayLike) -> Array:

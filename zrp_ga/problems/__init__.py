@@ -103,6 +103,11 @@ class Task:
     def write(self, out: Path, x: Array) -> None:
         """Files of this kind beyond the common ones."""
 
+    def fit_residual(self, x: Array | None) -> None:
+        """Fit the residual model (if the task's model has one) to genome ``x``'s residuals on the
+        calibration data, so that the judge's ``corrected`` errors use it; None: drop it (the
+        nominal arm is returned). Without a residual model: nothing."""
+
 
 def masked(c: ProblemConf, layout: Layout, info: dict[str, Any] | None = None, robot: ZRPRobot | None = None) -> Layout:
     """``layout`` with the parameters ``problem.fixed`` / ``problem.free`` name held at nominal

@@ -27,6 +27,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import warnings as warnings_module
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -36,14 +37,16 @@ from zrp_ga.core.errors import warn
 from zrp_ga.core.schema import Format, MeasuredConf, Ranges, section
 from zrp_ga.io import measurements, records
 from zrp_ga.model import error_model, metrics
+from zrp_ga.model import residual as residual_file
 from zrp_ga.model.cost import CalibrationProblem, model_rank
 from zrp_ga.model.coverage import Coverage
 from zrp_ga.model.layout import Layout
 from zrp_ga.model.metrics import Judge
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.registration import Registration, register
+from zrp_ga.model.residual import Residual
 from zrp_ga.model.robot import ZRPRobot
-from zrp_ga.problems import Task, half_ranges, identify, masked, term_scales, with_terms
+from zrp_ga.problems import Task, choice, half_ranges, identify, masked, term_scales, with_terms
 from zrp_ga.problems.size import ProblemSize, calibration, file_rows
 
 log = logging.getLogger(__name__)
@@ -70,7 +73,17 @@ class MeasuredTask(Task):
 
     registration: Registration | None = None
     sets: dict[str, Measurements] = dataclasses.field(default_factory=dict)
+    gp: bool = False  # the model has a Gaussian-process residual (problem.model: zrp_ga.problems.choice)
+    residual: Residual | None = None  # ... fitted to the final genome (fit_residual)
     nominal_if_worse: ClassVar[bool] = True
+
+    def fit_residual(self, x: np.ndarray | None) -> None:
+        """The Gaussian process on genome ``x``'s position residuals at the calibration poses
+        (:func:`zrp_ga.problems.choice.residual_model`), the judge's correction; None: none."""
+        if not self.gp:
+            return
+        self.residual = None if x is None else choice.residual_model(self, x, self.sets["calibration"])
+        self.judge.correction = None if self.residual is None else self.residual.correction
 
     def errors(self, x: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Position errors (m) of every pose of each set, nominal and calibrated (the validation
@@ -79,12 +92,14 @@ class MeasuredTask(Task):
         out = {}
         for k, m in self.sets.items():
             how = judge.registration if k == "validation" else "none"
-            out[k] = tuple(metrics.position_errors(p.layout, p.nominal, g, m, how) for g in (np.zeros_like(x), x))
+            out[k] = (metrics.position_errors(p.layout, p.nominal, np.zeros_like(x), m, how),
+                      metrics.position_errors(p.layout, p.nominal, x, m, how, correction=self.judge.correction))
         return out
 
     def report(self, x: np.ndarray) -> dict[str, Any]:
         mm = lambda e: {k: v * 1e3 if k != "poses" else v for k, v in metrics.summary(e).items()}
         return {
+            **({"residual_model": self.residual.hyperparameters()} if self.residual is not None else {}),
             "registration": self.registration.to_dict(),
             "position_error_mm": {k: {"nominal": mm(b), "calibrated": mm(a)} for k, (b, a) in self.errors(x).items()},
         }
@@ -120,6 +135,8 @@ class MeasuredTask(Task):
         for a calibrated arm, its predicted 1-sigma error (``predicted_mm``,
         :mod:`zrp_ga.model.uncertainty`)."""
         records.write_json(out / "registration.json", self.registration.to_dict())
+        if self.residual is not None:
+            self.residual.write(out / residual_file.FILE)
         self.calibrated_robot(x).to_yaml(out / INSTRUMENT_MODEL)
         names, rows = self.tool_names, []
         region = Coverage(self.problem.data.q)
@@ -147,9 +164,60 @@ def measured_format(robot: ZRPRobot, c: MeasuredConf) -> measurements.Format:
 
 def build(robot: ZRPRobot, run_seed: int = 0, **settings) -> MeasuredTask:
     """Read and split the measurement files of ``settings`` (``zrp_ga.core.schema.MeasuredConf``'s
-    keys, :func:`read_sets`), then :func:`from_measurements`."""
+    keys, :func:`read_sets`), choose the model (``problem.model``: :func:`chosen`), then
+    :func:`from_measurements`."""
     c: MeasuredConf = section(MeasuredConf, settings, "problem")
-    return from_measurements(robot, *read_sets(robot, run_seed, c), c)
+    calib, val = read_sets(robot, run_seed, c)
+    return chosen(robot, calib, val, c, run_seed)
+
+
+def chosen(robot: ZRPRobot, calib: Measurements, val: Measurements | None, c: MeasuredConf, seed: int = 0,
+           progress=None) -> MeasuredTask:  # fmt: skip
+    """The task of the model ``problem.model`` names or chooses (:mod:`zrp_ga.problems.choice`:
+    cross-validation on ``calib`` only, its fold scheme from the validation poses' joint values;
+    the table in ``summary.json``'s ``problem.model``); one candidate: no cross-validation."""
+    cands = choice.candidates(getattr(c, "model", "geometric"), getattr(c, "terms", None))
+    if len(cands) == 1 and cands[0].name == "geometric":
+        return from_measurements(robot, calib, val, c)
+    calib = calib.with_tool_names(calib.tool_names or ("tool",))
+    picked = choice.select(refit(robot, c), calib, cands, None if val is None else val.q, seed=seed, progress=progress)
+    if picked.scheme.warning and len(cands) > 1:
+        warn(picked.scheme.warning, log)
+    task = from_measurements(robot, calib, val, with_candidate(c, picked.candidate))
+    task.gp = picked.candidate.residual
+    task.info["model"] = picked.to_dict()
+    if picked.scheme.warning and len(cands) > 1:
+        task.warnings.append(picked.scheme.warning)
+    return task
+
+
+def with_candidate(c: MeasuredConf, cand: choice.Candidate) -> MeasuredConf:
+    """``c`` with the candidate's terms (and no further choice)."""
+    return dataclasses.replace(c, terms=cand.terms, model="geometric")
+
+
+def refit(robot: ZRPRobot, c: MeasuredConf) -> choice.Fit:
+    """The parametric fit a fold of the cross-validation makes: the whole calibration again on
+    its poses (registration, the identified genome) with the candidate's terms, by
+    Levenberg-Marquardt from the nominal arm (kept when it fits no better); its warnings are not
+    shown (the final calibration's are)."""
+    from zrp_ga.problems.least_squares import levenberg_marquardt
+
+    def fit(data: Measurements, terms) -> tuple[MeasuredTask, np.ndarray]:
+        previous = logging.root.manager.disable
+        logging.disable(logging.WARNING)
+        try:
+            with warnings_module.catch_warnings():
+                warnings_module.simplefilter("ignore")
+                task = from_measurements(robot, data, None, dataclasses.replace(c, terms=terms, model="geometric"))
+                found = levenberg_marquardt(task.problem)
+        finally:
+            logging.disable(previous)
+        zero = np.zeros(task.problem.lower.size)
+        nominal = float(task.problem.costs(zero)[0])
+        return task, found.x if found.x is not None and found.cost <= nominal else zero
+
+    return fit
 
 
 def read_sets(robot: ZRPRobot, seed: int, c: MeasuredConf) -> tuple[Measurements, Measurements | None]:

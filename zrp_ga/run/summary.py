@@ -193,13 +193,16 @@ def judged(task: Task, result: Result) -> tuple[dict[str, Any], np.ndarray]:
     nominal_cost = float(p.costs(zero)[0])
     found = result.x if result.x is not None else zero
     found = error_model.canonical(p.layout, p.nominal, found) if p.cost is Cost.nonlinear else found
-    before, at_found = judge.validation_errors(zero), judge.validation_errors(found)
+    task.fit_residual(found)  # a residual model (problem.model's +gp) on the found genome's residuals
+    before, at_found = judge.validation_errors(zero), judge.validation_errors(found, corrected=True)
     a = assess(task, found, float(at_found[0][0]))
     worse_val = bool(np.isfinite(at_found[0][0]) and at_found[0][0] > before[0][0])
     worse = worse_than_nominal(result, nominal_cost) or worse_val or a.predicted_worse
     returned = "nominal" if task.returns_nominal and worse else "optimiser"
     x, final_cost = (zero, nominal_cost) if returned == "nominal" else (found, result.cost)
-    after = before if returned == "nominal" else at_found
+    if returned == "nominal":  # the residual model, if any, on the nominal arm's residuals
+        task.fit_residual(zero)
+    after = judge.validation_errors(zero, corrected=True) if returned == "nominal" else at_found
     val_rms = {"nominal": float(before[0][0]) * 1e3, "calibrated": float(after[0][0]) * 1e3}
     return {
         "final_cost": final_cost,
