@@ -107,9 +107,10 @@ def test_save_load_predict_equals_the_calibration_in_memory(puma_run, tmp_path, 
     assert np.array_equal(b.outside, a.outside) and np.allclose(b.distance_ratio, a.distance_ratio, rtol=1e-12)
     assert back.summary["final_cost"] == cal.summary["final_cost"]
     pd.testing.assert_frame_equal(back.history[["gen", "nevals", "best"]], cal.history[["gen", "nevals", "best"]])
-    # a saved calibration is a run directory: a second save there is refused, a save of the loaded one copies it
+    # a directory holding another run is refused (saving where it already is: nothing to do); a loaded one copies it
     with pytest.raises(ValueError, match="already holds a run"):
-        cal.save(tmp_path / "kept")
+        cal.save(puma_run[1])
+    assert cal.save(tmp_path / "kept") == tmp_path / "kept"
     again = zrp_ga.load(back.save(tmp_path / "copy"))
     np.testing.assert_array_equal(again.predict(q).p, b.p)
 
@@ -189,10 +190,12 @@ def test_exports_read_back_by_yourdfpy_and_as_tables(puma_run, tmp_path, rng):
     for c, where in ((cal, "in memory"), (back, "loaded")):
         d = tmp_path / where.replace(" ", "_")
         paths = c.export(urdf=d / "arm.urdf", dh=d / "arm_dh.yaml", mdh=d / "arm_mdh.yaml", zrp=d / "arm.yaml")
-        assert paths["dh_corrections"].name == "arm_dh_corrections.csv", where  # the nominal table's conventions
-        corr = pd.read_csv(paths["dh_corrections"])
-        rows = corr[corr["row"].astype(str).str.isdigit()]
-        assert (rows["correction"].abs() < 5).all(), where  # mm and deg: nominal + a small correction
+        run = puma_run[1]  # the run's own files, in the nominal table's conventions: the same, but for their names
+        for kind in ("dh", "mdh"):
+            own = (run / f"calibrated_robot_{kind}.yaml").read_text()
+            assert paths[kind].read_text() == own.replace(f"calibrated_robot_{kind}_corrections", f"arm_{kind}_corrections")
+            assert paths[f"{kind}_corrections"].read_text() == (run / f"calibrated_robot_{kind}_corrections.csv").read_text()
+        assert paths["urdf"].read_text() == (run / "calibrated_robot.urdf").read_text()
         urdf = yourdfpy.URDF.load(str(paths["urdf"]), build_scene_graph=True, load_meshes=False)
         dh = yaml.safe_load(paths["dh"].read_text())
         q = rng.uniform(-2, 2, (6, 6))
