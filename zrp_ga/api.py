@@ -27,9 +27,9 @@ import numpy as np
 from zrp_ga import config
 from zrp_ga.core import errors, schema, targets
 from zrp_ga.core.schema import ConfigError, MeasuredConf
+from zrp_ga.io.simulate import Simulated, simulate
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.robot import ZRPRobot
-from zrp_ga.io.simulate import Simulated, simulate
 from zrp_ga.run.calibration import Calibration, Prediction, load
 
 __all__ = ["Calibration", "Prediction", "Simulated", "calibrate", "load", "simulate"]
