@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 from scipy.spatial.transform import Rotation
 
 import zrp_ga
@@ -53,8 +54,11 @@ def main(out: Path) -> str:
     prog = np.vstack([inside, outside])
     prog[:, 4] = np.where(np.abs(prog[:, 4]) < 0.3, 0.5, prog[:, 4])
     targets = seen(prog)  # targets the true probe reaches at the program's joints
-    c = zrp_ga.compensate(out / "run", targets, kind="cartesian", frame="instrument", tool="calibration",
-                          q_seed=prog[0], out=out / "compensated")  # fmt: skip
+    program = pd.DataFrame({**{f"{k}_mm": targets[:, j] * 1e3 for j, k in enumerate("xyz")},
+                            **{f"q{i + 1}_deg": np.degrees(prog[:, i]) for i in range(6)}})  # each row seeded by its joints
+    program.to_csv(out / "program.csv", index=False)
+    c = zrp_ga.compensate(out / "run", out / "program.csv", kind="cartesian", frame="instrument", tool="calibration",
+                          out=out / "compensated")  # fmt: skip
     actual = np.linalg.norm(seen(c.q) - targets, axis=1) * 1e3
     sigma, flagged = c.predicted["sigma_mm"], c.predicted["outside"]
     for name, k in (("inside the cell", slice(0, 40)), ("joint 1 beyond the cell", slice(40, 80))):

@@ -231,9 +231,9 @@ class Calibration:
 
         >>> import numpy as np, zrp_ga
         >>> cal = zrp_ga.calibrate("puma560", problem={"n_poses": 30, "cost": "nonlinear"}, algorithm="lm")
-        >>> pr = cal.predict(np.zeros(6))
-        >>> pr.p.shape, pr.R.shape, bool(pr.position_mm[0] < 0.1)
-        ((1, 3), (1, 3, 3), True)
+        >>> pr = cal.predict([10.0, -20.0, 30.0, 0.0, 45.0, 0.0], angle_unit="deg")
+        >>> pr.p.shape, pr.R.shape, bool(0 < pr.position_mm[0] < 1.0), pr.outside.tolist()
+        ((1, 3), (1, 3, 3), True, [False])
         """
         if frame not in ("measurements", "base"):
             raise ValueError(f"predict: frame {frame!r}, expected 'measurements' or 'base'")
