@@ -295,3 +295,19 @@ def test_simulate_refuses_bad_settings_in_one_line():
         zrp_ga.simulate("puma560", noise={"position": 1e-5})
     with pytest.raises(ValueError, match="tool: an offset"):
         zrp_ga.simulate("puma560", tool=[1.0, 2.0])
+
+
+def test_simulated_files_read_by_zrp_ga_give_the_calibration_calibrate_gives(cell, tmp_path, rng):
+    """The overrides ``simulate`` states, run as ``zrp-ga`` runs them (config composed by Hydra,
+    the run layer writing its directory): loaded, the same calibration as ``calibrate`` on the
+    same files (LM: deterministic)."""
+    from zrp_ga import config
+    from zrp_ga.run import execute
+
+    sim, cal, _ = cell
+    over = ["robot=puma560", "algorithm=lm", "progress=false", *sim.overrides]
+    execute.run(config.load(over), tmp_path / "run")
+    back = zrp_ga.load(tmp_path / "run")
+    q = rng.uniform(-1.0, 1.0, (10, 6))
+    np.testing.assert_allclose(back.predict(q).p, cal.predict(q).p, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(back.predict(q).position_mm, cal.predict(q).position_mm, rtol=1e-9)
