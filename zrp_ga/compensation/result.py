@@ -104,7 +104,7 @@ def evaluated(pr: Program, arms: Arms, q_cal: Array, q_nom: Array, p: Array, R: 
     )  # fmt: skip
 
 
-def predicted(arms: Arms, q: Array, orientations: bool = True) -> dict[str, Array]:
+def predicted(arms: Arms, q: Array, orientations: bool = True) -> dict[str, Any]:
     """Per target at the corrected joints q (M, n) (NaN rows: not reached, NaN there): the
     calibrated model's predicted 1-sigma error at the program's point, ``sigma_mm`` (position
     radius) and, with ``orientations``, ``sigma_deg`` (the calibration's covariance,
@@ -116,7 +116,7 @@ def predicted(arms: Arms, q: Array, orientations: bool = True) -> dict[str, Arra
     ``beyond_range_mm`` (prismatic). Only what the calibration carries (a robot file alone:
     nothing)."""
     ok = np.all(np.isfinite(q), axis=1)
-    M, out = len(q), {}
+    M, out = len(q), dict[str, Any]()
     u, c = arms.uncertainty, arms.coverage
     if u is not None:
         sigma, turn = np.full(M, np.nan), np.full(M, np.nan)

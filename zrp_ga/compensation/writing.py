@@ -117,7 +117,8 @@ def summary(c: Compensation) -> dict[str, Any]:
 PREDICTED = {
     "sigma_mm": "the calibrated model's predicted 1-sigma position error at the corrected joints, at the program's point "
                 "(from the calibration's parameter covariance: zrp_ga.model.uncertainty), mm",
-    "sigma_deg": "the same for the orientation, deg",
+    "sigma_deg": "the same for the orientation, deg (a calibration of positions alone did not fit the hand's own turn, "
+                 "which is then not in it)",
     "outside": "the corrected joints lie outside the region the calibration poses cover (a joint beyond its calibrated "
                "range, or farther from every calibration pose than they lie from each other: zrp_ga.model.coverage)",
     "distance_ratio": "the distance (joint space) to the nearest calibration pose over the calibration poses' own spacing",

@@ -56,7 +56,10 @@ class Prediction:
     ``position_mm`` (M,) (the identified combinations' covariance and the prior of what was
     left at nominal together) and orientation error ``orientation_mrad`` (M,) (None without a
     covariance); where q lies against the calibration poses: ``outside`` (M,) bool and
-    ``distance_ratio`` (M,) (None without them, :mod:`zrp_ga.model.coverage`)."""
+    ``distance_ratio`` (M,) (None without them, :mod:`zrp_ga.model.coverage`).
+    ``orientations_fitted``: whether the calibration fitted measured orientations; if not, the
+    hand's own turn is the nominal's (positions cannot see it) and ``orientation_mrad`` holds
+    only what the axes' uncertainty does to it."""
 
     p: Array
     R: Array
@@ -65,6 +68,7 @@ class Prediction:
     orientation_mrad: Array | None = None
     outside: NDArray[np.bool_] | None = None
     distance_ratio: Array | None = None
+    orientations_fitted: bool = True
 
     def table(self):
         """One row per pose (a pandas DataFrame): ``x_mm, y_mm, z_mm``, the rotation vector
@@ -135,7 +139,7 @@ class Calibration:
     def orientations(self) -> bool:
         """Whether the calibration data held orientations (fitted)."""
         if self.task is not None:
-            return bool(getattr(self.task.problem.data, "R", None) is not None) if self.measured else True
+            return getattr(self.task.problem.data, "R", None) is not None
         problem = (self.summary.get("config") or {}).get("problem") or {}
         return not (problem.get("position_only") or problem.get("use_orientation") is False)
 
@@ -170,7 +174,7 @@ class Calibration:
         return self._coverage
 
     # --- prediction ---------------------------------------------------------------------------------
-    def predict_error(self, q, tool: int = 0) -> dict[str, np.ndarray]:
+    def predict_error(self, q, tool: int = 0) -> dict[str, Any]:
         """Predicted 1-sigma errors of the calibrated arm at joint values q (M, n) (the model's
         units: rad, m; measured data: as read from the file, converted), each (M,):
         ``position_mm`` (the identified combinations' covariance and the prior of those left at
@@ -262,7 +266,8 @@ class Calibration:
         where = self._coverage_of(q)
         base_frame = frame == "base" or self.base is None
         return Prediction(p if base_frame else p_m, R if base_frame else R_m, "base" if frame == "base" else "measurements",
-                          pos, rot, None if where is None else where.outside, None if where is None else where.ratio)  # fmt: skip
+                          pos, rot, None if where is None else where.outside, None if where is None else where.ratio,
+                          self.orientations)  # fmt: skip
 
     def plot(self, ax=None):
         """The convergence curve (best cost per evaluation) on ``ax``, or on a new figure that is
@@ -361,7 +366,7 @@ class Calibration:
         """The arm with the nominal arm's source (its DH table or URDF): the exports then keep
         the nominal's conventions and file, as the run's own files do."""
         source = getattr(self.nominal, "source", None)
-        if source is None or isinstance(source, str) or self.arm.joint_types != self.nominal.joint_types:
+        if self.nominal is None or source is None or isinstance(source, str) or self.arm.joint_types != self.nominal.joint_types:
             return self.arm
         return self.arm.replace(source=source)
 
