@@ -135,3 +135,17 @@ def test_a_robot_file_alone_has_no_such_columns_and_says_why(run, tmp_path):
     assert c.predicted == {}
     assert "sigma_mm" not in pd.read_csv(tmp_path / "c" / "joints.csv").columns
     assert "carries no covariance" in json.loads((tmp_path / "c" / "compensation.json").read_text())["predicted"]["why_not"]
+
+
+def test_the_command_line_says_how_sure_the_rows_are(run, tmp_path, capsys):
+    from zrp_ga.cli.compensate import main
+
+    out, _ = run
+    q = program(np.random.default_rng(6), 4)
+    prog = tmp_path / "prog.csv"
+    pd.DataFrame({f"q{i + 1}_deg": np.degrees(q[:, i]) for i in range(6)}).to_csv(prog, index=False)
+    assert main([str(out), str(prog), "-o", str(tmp_path / "c")]) == 0
+    said = capsys.readouterr().out
+    table = pd.read_csv(tmp_path / "c" / "joints.csv")
+    assert f"RMS {np.sqrt(np.mean(table['sigma_mm'] ** 2)):.3g} mm" in said
+    assert "50% of the rows outside the calibration poses' region" in said
