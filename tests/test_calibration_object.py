@@ -183,12 +183,21 @@ def test_a_measured_calibration_predicts_what_the_tracker_sees(cell, tmp_path, r
     np.testing.assert_allclose(back.predict(q, tool="hand").position_mm, cal.predict(q, tool="hand").position_mm, rtol=1e-9)
 
 
-def test_load_refuses_what_is_not_a_run(tmp_path):
+def test_load_refuses_what_is_not_a_run(puma_run, tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match="not a calibration run directory"):
         zrp_ga.load(tmp_path / "empty")
     with pytest.raises(ValueError, match="not a directory"):
         zrp_ga.load(tmp_path / "nothing")
+    import shutil
+
+    shutil.copytree(puma_run[1], tmp_path / "sweep" / "0")
+    with pytest.raises(ValueError, match=r"a sweep directory\? give one of its jobs"):
+        zrp_ga.load(tmp_path / "sweep")
+    rows = (tmp_path / "sweep" / "0" / "convergence.csv").read_text().splitlines(keepends=True)
+    (tmp_path / "sweep" / "0" / "convergence.csv").write_text("".join(rows[:-1]))
+    with pytest.raises(ValueError, match="not a finished run: .*convergence.csv ends before the run did"):
+        zrp_ga.load(tmp_path / "sweep" / "0")
 
 
 # --- exports ---------------------------------------------------------------------------------------
