@@ -95,14 +95,14 @@ class Calibration:
     loaded from (None: in memory only)."""
 
     robot: ZRPRobot
-    summary: dict
-    arm: ZRPRobot
+    summary: dict = dataclasses.field(repr=False)
+    arm: ZRPRobot = dataclasses.field(repr=False)
     nominal: ZRPRobot | None = None
-    base: Array | None = None
-    tools: dict[str, Array] = dataclasses.field(default_factory=dict)
-    history_table: Any = None
-    result: Any = None
-    task: Any = None
+    base: Array | None = dataclasses.field(default=None, repr=False)
+    tools: dict[str, Array] = dataclasses.field(default_factory=dict, repr=False)
+    history_table: Any = dataclasses.field(default=None, repr=False)
+    result: Any = dataclasses.field(default=None, repr=False)
+    task: Any = dataclasses.field(default=None, repr=False)
     directory: Path | None = None
     _uncertainty: Any = dataclasses.field(default=False, repr=False)  # False: not computed yet
     _coverage: Any = dataclasses.field(default=False, repr=False)
