@@ -8,7 +8,7 @@ from typing import Any
 
 
 def __getattr__(name: str) -> Any:
-    """``__version__``, ``calibrate`` and ``ZrpGaWarning`` on first use: importing the package stays cheap."""
+    """``__version__``, ``calibrate``, ``load``, ``simulate``, ``Calibration``, ``compensate`` and ``ZrpGaWarning`` on first use: importing the package stays cheap."""
     if name == "__version__":
         from importlib import metadata
 
@@ -16,10 +16,10 @@ def __getattr__(name: str) -> Any:
             return metadata.version("zrp_ga")
         except metadata.PackageNotFoundError:  # a source tree that is not installed
             return "0+unknown"
-    if name == "calibrate":
-        from zrp_ga.api import calibrate
+    if name in ("calibrate", "load", "simulate", "Calibration"):  # zrp_ga.api: a calibration made, kept, rehearsed
+        from zrp_ga import api
 
-        return calibrate
+        return getattr(api, name)
     if name == "ZrpGaWarning":  # the class of every warning zrp_ga gives inside the API
         from zrp_ga.core.errors import ZrpGaWarning
 
@@ -29,4 +29,4 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'zrp_ga' has no attribute {name!r}")
 
 
-__all__ = ["ZrpGaWarning", "calibrate", "compensate"]
+__all__ = ["Calibration", "ZrpGaWarning", "calibrate", "compensate", "load", "simulate"]

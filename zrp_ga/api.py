@@ -26,103 +26,23 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from zrp_ga import config
-from zrp_ga.algorithms import Result
 from zrp_ga.core import errors, schema, targets
 from zrp_ga.core.schema import ConfigError, MeasuredConf
+from zrp_ga.io.simulate import Simulated, simulate
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.robot import ZRPRobot
-from zrp_ga.problems import Task
+from zrp_ga.run.calibration import Calibration, Prediction, load
 
 if TYPE_CHECKING:
     import pandas as pd
-    from matplotlib.axes import Axes
-    from matplotlib.figure import Figure, SubFigure
 
-    from zrp_ga.model.uncertainty import Uncertainty
 
     # Measurements in memory or in a file, as calibrate() takes them (its docstring): a file, a DataFrame, a
     # tuple (q, positions[, orientations]) of arrays, a dict of arrays or of columns, or Measurements.
     MeasurementData: TypeAlias = Measurements | str | Path | pd.DataFrame | tuple[ArrayLike, ...] | list[ArrayLike] | Mapping[str, Any]
 
 
-@dataclasses.dataclass
-class Calibration:
-    """What :func:`calibrate` found: the calibrated ``robot`` (in the measurements' frame for
-    measured data), the optimiser's ``result``, the run's ``summary`` (as ``summary.json``) and
-    the ``task`` it solved; how sure it is: :attr:`uncertainty` and :meth:`predict_error`."""
-
-    robot: ZRPRobot
-    result: Result
-    summary: dict[str, Any]  # summary.json's entries
-    task: Task
-
-    @property
-    def x(self) -> np.ndarray:
-        """The returned genome (the problem's genes; zero when the nominal arm was returned)."""
-        return _genome(self.summary, self.task)
-
-    @property
-    def uncertainty(self) -> Uncertainty | None:
-        """The calibration's :class:`zrp_ga.model.uncertainty.Uncertainty` (the covariance of
-        the identified combinations and the prior of what was left at nominal), None when the
-        nominal arm was returned or the data leave no degrees of freedom for the noise."""
-        if self.summary.get("returned") == "nominal" or "uncertainty" not in self.summary:
-            return None
-        from zrp_ga.problems.identify import uncertainty
-
-        return uncertainty(self.task.problem, self.x, self.task.setup)
-
-    def predict_error(self, q: ArrayLike, tool: int = 0) -> dict[str, np.ndarray]:
-        """Predicted 1-sigma errors of the calibrated arm at joint values q (M, n) (the model's
-        units: rad, m; measured data: as read from the file, converted), each (M,):
-        ``position_mm`` (the identified combinations' covariance and the prior of those left at
-        nominal together), ``position_identified_mm``, ``position_unidentified_mm``,
-        ``orientation_mrad``; and where q lies against the calibration poses: ``outside``
-        (bool) and ``distance_ratio`` (:mod:`zrp_ga.model.coverage`). ValueError when there is
-        no uncertainty (:attr:`uncertainty`).
-
-        >>> import zrp_ga
-        >>> cal = zrp_ga.calibrate("puma560", problem={"n_poses": 30, "cost": "nonlinear"}, algorithm="lm")
-        >>> e = cal.predict_error(cal.task.problem.data.q[:3])
-        >>> bool((e["position_mm"] < 1.0).all()), e["outside"].tolist()
-        (True, [False, False, False])
-        """
-        from zrp_ga.model.coverage import Coverage
-
-        u = self.uncertainty
-        if u is None:
-            raise ValueError("predict_error: this calibration has no uncertainty (the nominal arm was returned, or the data "
-                             "leave no degrees of freedom to estimate the noise)")  # fmt: skip
-        p = u.predict(q, tool)
-        where = Coverage(self.task.problem.data.q).assess(q)
-        return {"position_mm": p["position_total_m"] * 1e3, "position_identified_mm": p["position_m"] * 1e3,
-                "position_unidentified_mm": p["position_unidentified_m"] * 1e3,
-                "orientation_mrad": np.hypot(p["orientation_rad"], p["orientation_unidentified_rad"]) * 1e3,
-                "outside": where.outside, "distance_ratio": where.ratio}  # fmt: skip
-
-    @property
-    def history(self) -> pd.DataFrame:
-        """One row per generation (pandas DataFrame), the columns of ``convergence.csv``."""
-        return self.result.history
-
-    def plot(self, ax: Axes | None = None) -> Figure | SubFigure:
-        """The convergence curve (best cost per evaluation) on ``ax``, or on a new figure that is
-        returned without being shown (``matplotlib.figure.Figure``: no backend is chosen)."""
-        if ax is None:
-            from matplotlib.figure import Figure
-
-            ax = Figure(figsize=(6, 4)).subplots()
-        h = self.history
-        ax.semilogy(h["nevals"], h["best"], marker=".")
-        ax.set_xlabel("evaluations")
-        ax.set_ylabel("best cost")
-        ax.set_title(self.summary["instance"], fontsize=9)
-        return ax.figure
-
-
-def _genome(summary: dict[str, Any], task: Task) -> np.ndarray:
-    """The genome ``summary.json`` returns (its ``best_genome``), in the order of ``task``'s genes."""
-    return np.array([summary["best_genome"][k] for k in task.problem.names])
+__all__ = ["Calibration", "Prediction", "Simulated", "calibrate", "load", "simulate"]
 
 
 def _overrides(algorithm: str, seed: int, settings: dict[str, Any]) -> list[str]:
@@ -284,10 +204,7 @@ def _calibrate(robot: ZRPRobot | str | Path, data: MeasurementData | None, valid
     else:
         ran = [execute.execute(p, progress, cache=cache) if p.out is None else execute.run_prepared(p, progress, cache=cache)
                for p in prepared]  # fmt: skip
-    out = []
-    for p, (result, summary) in zip(prepared, ran):
-        out.append(Calibration(p.task.calibrated_robot(_genome(summary, p.task)), result, summary, p.task))
-    return out
+    return [Calibration.from_run(p.task, result, summary, p.out) for p, (result, summary) in zip(prepared, ran)]
 
 
 def _robot_source(robot: str | Path) -> dict[str, str]:

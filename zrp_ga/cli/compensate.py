@@ -101,6 +101,9 @@ def report(s: dict, program: str, out: Path) -> None:
               f"predicts): RMS {st['uncompensated_mm']['rms']:.4g} mm, max {st['uncompensated_mm']['max']:.4g} mm")  # fmt: skip
         joints = f"joints up to {st['dq_deg']['max']:.4g} deg" + (f" and {st['dq_mm']['max']:.4g} mm" if "dq_mm" in st else "")
         print(f"correction: {joints}; Cartesian up to {st['dx_mm']['max']:.4g} mm and {st['dr_deg']['max']:.4g} deg")
+    line = predicted_line(s.get("predicted") or {})
+    if line:
+        print(line)
     if "work_object_in_base" in s:
         pose = ", ".join(f"{k} {v:.6g}" for k, v in s["work_object_in_base"]["pose"].items())
         print(f"work object in the base frame (enter it in the controller): {pose}")
@@ -110,6 +113,18 @@ def report(s: dict, program: str, out: Path) -> None:
         print(f"... {len(s['unreachable']) - 20} more unreachable targets (compensation.json)")
     for note in s["notes"]:
         print(f"note: {note}")
+
+
+def predicted_line(p: dict) -> str:
+    """One line on how sure the corrected rows are (the calibration's covariance) and how many
+    lie outside the calibration poses' region; empty when the calibration carries neither."""
+    parts = []
+    if p.get("sigma_mm"):
+        parts.append(f"predicted 1-sigma error of the calibrated model at the corrected rows: RMS {p['sigma_mm']['rms']:.3g} mm, "
+                     f"max {p['sigma_mm']['max']:.3g} mm (sigma_mm)")  # fmt: skip
+    if p.get("share_outside") is not None:
+        parts.append(f"{p['share_outside']:.0%} of the rows outside the calibration poses' region (outside, beyond_range_deg)")
+    return "; ".join(parts)
 
 
 def cli() -> None:

@@ -11,7 +11,6 @@ not a calibration.
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 from pathlib import Path
 from typing import Any
@@ -25,6 +24,7 @@ from zrp_ga.io.measurements import reach_m
 from zrp_ga.model import kinematics, so3
 from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.run import directory
+from zrp_ga.run.calibration import Calibration, load
 
 Array = NDArray[np.float64]
 RUN_MODEL = "calibrated_robot.yaml"
@@ -46,7 +46,9 @@ class Arms:
     the end point itself); whether the calibration measured ``orientations``; ``frames``: how the
     base and the flange were set up (:mod:`zrp_ga.compensation.setups`) with the sizes of what
     the data leave open; ``noise_mm``: the calibration's measurement noise per coordinate as its
-    residual shows it (RMS point distance over sqrt 3; None: not known)."""
+    residual shows it (RMS point distance over sqrt 3; None: not known); the calibration's
+    ``uncertainty`` (its covariance, in the instrument's frame) and ``coverage`` (its
+    calibration poses), None where not known (a robot file alone)."""
 
     calibrated: ZRPRobot
     nominal: ZRPRobot
@@ -58,6 +60,8 @@ class Arms:
     measured: bool = False
     frames: dict = dataclasses.field(default_factory=dict)
     noise_mm: float | None = None
+    uncertainty: Any = None  # zrp_ga.model.uncertainty.Uncertainty of the calibration (None: not known)
+    coverage: Any = None  # zrp_ga.model.coverage.Coverage of its calibration poses (None: not known)
 
     def noted(self, *notes: str) -> Arms:
         return dataclasses.replace(self, notes=(*self.notes, *notes))
@@ -88,7 +92,7 @@ def _arms(calibration: Any) -> Arms:
     nominal arm None where none is recorded)."""
     if isinstance(calibration, ZRPRobot):
         return Arms(calibration, None, source="the calibrated robot")
-    if hasattr(calibration, "task") and hasattr(calibration, "summary"):  # zrp_ga.api.Calibration
+    if isinstance(calibration, Calibration):
         return _from_calibration(calibration)
     if isinstance(calibration, (str, os.PathLike)):
         return _from_path(as_path(calibration, "calibration"))
@@ -99,15 +103,19 @@ def _kind(value: Any) -> str:
     return "None" if value is None else f"a {type(value).__module__}.{type(value).__qualname__}".replace("builtins.", "")
 
 
-def _from_calibration(calibration: Any) -> Arms:
-    """The arms of what :func:`zrp_ga.calibrate` returns."""
-    task = calibration.task
-    x = np.array([calibration.summary["best_genome"][k] for k in task.problem.names])
-    cal, base, tools = task.export(x)
-    measured = base is not None
-    orient = bool(getattr(task.problem.data, "R", None) is not None) if measured else True
-    return Arms(cal, task.robot, base, "the calibration", tool=next(iter(tools.values()), None), orientations=orient,
-                measured=measured, noise_mm=_noise(calibration.summary))  # fmt: skip
+def _from_calibration(calibration: Calibration, source: str = "the calibration") -> Arms:
+    """The arms of a :class:`~zrp_ga.run.calibration.Calibration` (what :func:`zrp_ga.calibrate`
+    returns, or :func:`zrp_ga.load` reads), with its covariance and the region its poses cover."""
+    where = f"{source}: calibrated_robot"
+    base = None if calibration.base is None else frames.check_transform(calibration.base, f"{where}.base")
+    tool = next(iter(calibration.tools.values()), None)
+    tool = None if tool is None else frames.check_transform(tool, f"{where}.tools")
+    notes = []
+    if calibration.summary.get("returned") == "nominal":
+        notes.append(f"{source}: the run returned the nominal arm (it fitted no better): nothing to correct")  # fmt: skip
+    return Arms(calibration.arm, calibration.nominal, base, source, tuple(notes), tool=tool,
+                orientations=calibration.orientations, measured=base is not None, noise_mm=_noise(calibration.summary),
+                uncertainty=calibration.uncertainty, coverage=calibration.coverage)  # fmt: skip
 
 
 def _noise(summary: dict) -> float | None:
@@ -119,52 +127,19 @@ def _noise(summary: dict) -> float | None:
 
 
 def _from_path(path: Path) -> Arms:
-    """The arms of a run directory, or of a calibrated robot file (with its run's summary.json
-    when it lies in a run directory)."""
+    """The arms of a run directory (:func:`zrp_ga.run.calibration.load`), or of a calibrated
+    robot file (with its run's when it lies in a run directory)."""
     from zrp_ga.io.robot_files import read_robot
 
     if path.is_dir():
-        _check_run_dir(path)
-        run, path = path, path / RUN_MODEL
-    else:
-        regular_file(path, "a calibrated robot file or a zrp-ga run directory")
-        run = path.parent if (path.parent / directory.SUMMARY).is_file() else None  # a run's URDF: its arm in the base frame too
+        if (path / RUN_MODEL).is_file() and not (path / directory.SUMMARY).is_file():  # the arm alone
+            return Arms(read_robot(path / RUN_MODEL), None, source=str(path / RUN_MODEL))
+        return _from_calibration(load(path), str(path / RUN_MODEL))
+    regular_file(path, "a calibrated robot file or a zrp-ga run directory")
     cal = read_robot(path)
-    if run is None:
+    if not (path.parent / directory.SUMMARY).is_file():
         return Arms(cal, None, source=str(path))
-    return _run_info(run, Arms(cal, None, source=str(path)))
-
-
-def _check_run_dir(path: Path) -> None:
-    if (path / RUN_MODEL).is_file():
-        return
-    jobs = sorted(p.parent.name for p in path.glob(f"*/{RUN_MODEL}"))
-    hint = f"; a sweep directory? give one of its jobs ({path / jobs[0]}, ...)" if jobs else ""
-    raise ValueError(f"{path}: not a calibration run directory (no {RUN_MODEL}){hint}")
-
-
-def _run_info(run: Path, arms: Arms) -> Arms:
-    """``arms`` with the nominal arm, the base transform, the first tool and notes of a run's
-    ``summary.json``."""
-    path = run / directory.SUMMARY
-    text = regular_file(path, "a run's summary.json").read_text()
-    try:
-        s = json.loads(text)
-    except ValueError as exc:
-        raise ValueError(f"{path}: not JSON ({exc})") from None
-    nominal = ZRPRobot.from_dict(s["robot_model"], source=f"{path}: robot_model") if "robot_model" in s else None
-    files = s.get("calibrated_robot") or {}
-    base = files.get("base")
-    tool = next(iter((files.get("tools") or {}).values()), None)
-    base = None if base is None else frames.check_transform(base, f"{path}: calibrated_robot.base")
-    tool = None if tool is None else frames.check_transform(tool, f"{path}: calibrated_robot.tools")
-    notes = []
-    if s.get("returned") == "nominal":
-        notes.append(f"{path}: the run returned the nominal arm (it fitted no better): nothing to correct")
-    problem = (s.get("config") or {}).get("problem") or {}
-    orientations = not (problem.get("position_only") or problem.get("use_orientation") is False)
-    return dataclasses.replace(arms, nominal=nominal, base=base, tool=tool, notes=tuple(notes), orientations=orientations,
-                               measured=base is not None, noise_mm=_noise(s))  # fmt: skip
+    return dataclasses.replace(_from_calibration(load(path.parent), str(path)), calibrated=cal)  # a run's URDF: its arm in the base frame too
 
 
 def _robot(robot: Any, what: str) -> ZRPRobot:

@@ -17,7 +17,10 @@ calibrated one. For each target ``T*`` (a pose, or a position) in the robot's ba
 Beside each target: the predicted residual ``FK_cal(q*) - T*`` (mm, deg), the error the
 calibrated model predicts for the uncompensated program ``FK_cal(q_nom) - T*`` and the size of
 the correction, ``|q* - q_nom|`` (deg for revolute, mm for prismatic joints) and
-``|T_c - T*|`` (mm, deg). A target the calibrated arm cannot reach within its joint limits (to
+``|T_c - T*|`` (mm, deg); with a run directory or a calibration, how sure the calibrated model
+is there (``sigma_mm``, ``sigma_deg``: its 1-sigma error from the parameter covariance) and
+whether ``q*`` lies outside the calibration poses' region (``outside``, ``distance_ratio``,
+``beyond_range_deg``: :func:`zrp_ga.compensation.result.predicted`). A target the calibrated arm cannot reach within its joint limits (to
 ``tolerance_m`` and ``tolerance_rad``) is named with its line and why.
 
 Frames (:mod:`zrp_ga.compensation.setups`). Targets are in the robot's base frame (``frame=

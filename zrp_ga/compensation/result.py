@@ -28,7 +28,10 @@ class Compensation:
     positions) in the robot's base frame, the corrected Cartesian targets ``p_corrected``,
     ``R_corrected`` in the base frame (what a controller using the nominal model is sent), the
     predicted residuals and uncompensated errors (mm, deg), ``reasons`` (empty where reached),
-    and ``to_base`` (4, 4): the program's frame in the base frame (``frame`` names it)."""
+    ``to_base`` (4, 4): the program's frame in the base frame (``frame`` names it), and
+    ``predicted``: per target, how sure the calibrated model is at the corrected joints and
+    where they lie against its calibration poses (:func:`predicted`; empty where the
+    calibration has neither)."""
 
     program: Program
     arms: Arms
@@ -47,6 +50,7 @@ class Compensation:
     frame: str = "base"
     to_base: Array = dataclasses.field(default_factory=lambda: np.eye(4))
     frame_source: str = ""
+    predicted: dict = dataclasses.field(default_factory=dict)
 
     @property
     def unreachable(self) -> list[str]:
@@ -96,5 +100,48 @@ def evaluated(pr: Program, arms: Arms, q_cal: Array, q_nom: Array, p: Array, R: 
         pr, arms, q, q_nom, p, R, p_corr, R_corr,
         residual_mm=np.linalg.norm(p_after - p, axis=1) * 1e3, residual_deg=angle(R_after),
         uncompensated_mm=np.linalg.norm(p_before - p, axis=1) * 1e3, uncompensated_deg=angle(R_before),
-        reached=reached, reasons=tuple(reasons), **where,
+        reached=reached, reasons=tuple(reasons), predicted=predicted(arms, q, orientations=R is not None), **where,
     )  # fmt: skip
+
+
+def predicted(arms: Arms, q: Array, orientations: bool = True) -> dict[str, Any]:
+    """Per target at the corrected joints q (M, n) (NaN rows: not reached, NaN there): the
+    calibrated model's predicted 1-sigma error at the program's point, ``sigma_mm`` (position
+    radius) and, with ``orientations``, ``sigma_deg`` (the calibration's covariance,
+    :meth:`zrp_ga.model.uncertainty.Uncertainty.predict`, carried from its measured point to the
+    program's by the lever arm between them, in the instrument's frame); and where q lies against
+    the calibration poses (:mod:`zrp_ga.model.coverage`): ``outside`` (bool), ``distance_ratio``
+    (the distance to the nearest calibration pose over their own spacing) and how far beyond
+    the calibrated joint ranges, ``beyond_range_deg`` (revolute joints, the largest) and
+    ``beyond_range_mm`` (prismatic). Only what the calibration carries (a robot file alone:
+    nothing)."""
+    ok = np.all(np.isfinite(q), axis=1)
+    M, out = len(q), dict[str, Any]()
+    u, c = arms.uncertainty, arms.coverage
+    if u is not None:
+        sigma, turn = np.full(M, np.nan), np.full(M, np.nan)
+        if ok.any():
+            B = np.eye(4) if arms.base is None else arms.base
+            _, p = kinematics.forward(arms.calibrated, q[ok])
+            _, at = kinematics.forward(u.robot(0), q[ok])
+            e = u.predict(q[ok], 0, offset_m=p @ B[:3, :3].T + B[:3, 3] - at)
+            sigma[ok] = e["position_total_m"] * 1e3
+            turn[ok] = np.degrees(np.hypot(e["orientation_rad"], e["orientation_unidentified_rad"]))
+        out["sigma_mm"] = sigma
+        if orientations:
+            out["sigma_deg"] = turn
+    if c is not None and c.q.shape[1] == q.shape[1]:
+        outside, ratio = np.zeros(M, dtype=bool), np.full(M, np.nan)
+        excess = np.full(q.shape, np.nan)
+        if ok.any():
+            a = c.assess(q[ok])
+            outside[ok], ratio[ok], excess[ok] = a.outside, a.ratio, a.excess
+        out["outside"], out["distance_ratio"] = outside, ratio
+        pri = arms.calibrated.prismatic
+        out["beyond_range_deg"] = np.degrees(np.max(excess[:, ~pri], axis=1, initial=0.0)) if (~pri).any() else None
+        out["beyond_range_mm"] = np.max(excess[:, pri], axis=1, initial=0.0) * 1e3 if pri.any() else None
+        out = {k: v for k, v in out.items() if v is not None}
+        for k in ("beyond_range_deg", "beyond_range_mm"):
+            if k in out:
+                out[k] = np.where(ok, out[k], np.nan)
+    return out

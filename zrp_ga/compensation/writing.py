@@ -5,7 +5,14 @@ Every column of a number carries its unit (``q1_deg``, ``q3_mm``, ``x_mm``, ``A_
 quaternions and branch numbers have none); the orientation columns have the convention's own
 names (:mod:`zrp_ga.compensation.orientation`), each angle the turn nearest the program's own
 where it gave one; each row carries the branch its corrected joints are on
-(:mod:`zrp_ga.compensation.configuration`). The corrected Cartesian targets are in the program's
+(:mod:`zrp_ga.compensation.configuration`). How sure each row is, where the calibration
+carries it (a run directory or a calibration, not a robot file alone): ``sigma_mm`` and
+``sigma_deg``, the calibrated model's predicted 1-sigma position and orientation error at the
+corrected joints and the program's point (its parameter covariance,
+:mod:`zrp_ga.model.uncertainty`), and ``outside``, ``distance_ratio``, ``beyond_range_deg``
+(``beyond_range_mm``), where the corrected joints lie against the calibration poses
+(:mod:`zrp_ga.model.coverage`); ``compensation.json`` says what each means under ``predicted``.
+The corrected Cartesian targets are in the program's
 frame when that is a work object (to be used with the work object as ``compensation.json``
 gives it in the base frame), in the robot's base frame otherwise.
 """
@@ -39,6 +46,8 @@ def tables(c: Compensation):
             "status": ["ok" if r else f"unreachable: {why}" for r, why in zip(ok, c.reasons)]}  # fmt: skip
     branch = {k: pd.array(np.where(np.isfinite(v), v, np.nan), dtype="Int64") for k, v in configuration.table(c.arms.nominal, c.q).items()}
     stats = {k: np.where(ok, v, np.nan) for k, v in _stats(c).items()}
+    stats.update({k: pd.array(np.where(ok, v, None), dtype="boolean") if v.dtype == bool else np.where(ok, v, np.nan)
+                  for k, v in c.predicted.items()})  # fmt: skip
     joints = pd.DataFrame({**head, **joint_columns(c), **branch, **stats})
     targets = pd.DataFrame({**head, **target_columns(c), **branch, **stats})
     return joints, targets
@@ -100,8 +109,42 @@ def summary(c: Compensation) -> dict[str, Any]:
                   "orientation_convention": convention, "orientation_columns": list(orientation.columns(convention)),
                   "whose": orientation.WHOSE.get(convention, f"the Euler sequence {convention} (scipy)")},
         "rows": pr.M, "reached": int(ok.sum()), "unreachable": c.unreachable,
-        "stats": {k: stat(v) for k, v in _stats(c).items()}, "notes": list(arms.notes),
+        "stats": {k: stat(v) for k, v in _stats(c).items()},
+        "predicted": _predicted_summary(c, stat), "notes": list(arms.notes),
     }  # fmt: skip
+
+
+PREDICTED = {
+    "sigma_mm": "the calibrated model's predicted 1-sigma position error at the corrected joints, at the program's point "
+                "(from the calibration's parameter covariance: zrp_ga.model.uncertainty), mm",
+    "sigma_deg": "the same for the orientation, deg (a calibration of positions alone did not fit the hand's own turn, "
+                 "which is then not in it)",
+    "outside": "the corrected joints lie outside the region the calibration poses cover (a joint beyond its calibrated "
+               "range, or farther from every calibration pose than they lie from each other: zrp_ga.model.coverage)",
+    "distance_ratio": "the distance (joint space) to the nearest calibration pose over the calibration poses' own spacing",
+    "beyond_range_deg": "how far the corrected joints lie beyond the calibrated joint ranges (revolute, the largest), deg",
+    "beyond_range_mm": "the same for prismatic joints, mm",
+}  # fmt: skip
+
+
+def _predicted_summary(c: Compensation, stat) -> dict[str, Any]:
+    """The columns of how sure the correction is, what each means, their largest and RMS values
+    and the share of targets outside the calibration's region; why not, where the calibration
+    carries none."""
+    p = c.predicted
+    if not p:
+        return {"columns": {}, "why_not": f"{c.arms.source} carries no covariance or calibration poses (a robot file "
+                                          "alone); compensate with a run directory or a calibration to have them"}  # fmt: skip
+    out: dict[str, Any] = {"columns": {k: PREDICTED[k] for k in p}}
+    if "sigma_mm" not in p:
+        out["why_no_sigma"] = "the calibration has no covariance (it returned the nominal arm, or left no degrees of freedom)"
+    ok = c.reached
+    for k, v in p.items():
+        if k != "outside":
+            out[k] = stat(np.asarray(v, dtype=float))
+    if "outside" in p:
+        out["share_outside"] = float(np.mean(p["outside"][ok])) if ok.any() else None
+    return out
 
 
 def _frames(c: Compensation) -> dict[str, Any]:

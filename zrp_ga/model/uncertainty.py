@@ -108,12 +108,21 @@ class Uncertainty:
     noise_m: float
     source: str = "residual"
 
-    def predict(self, q: ArrayLike, tool: int = 0) -> dict[str, Array]:
+    def predict(self, q: ArrayLike, tool: int = 0, offset_m: ArrayLike | None = None) -> dict[str, Array]:
         """Predicted 1-sigma errors at poses q (M, n) of tool ``tool``'s point, each (M,):
         ``position_m`` and ``orientation_rad`` from the identified combinations' covariance,
         ``position_unidentified_m`` and ``orientation_unidentified_rad`` from what was left at
-        nominal (its prior), and ``position_total_m``, both together."""
+        nominal (its prior), and ``position_total_m``, both together.
+
+        ``offset_m`` (3,) or (M, 3), m: a point fixed to the hand at this vector from the tool's
+        point (in the model's frame, at each pose) instead of the tool's point: its position
+        error is ``dp + dr x d`` (a rigid lever arm), so its Jacobian's position rows are
+        ``J_p - [d]x J_r``."""
         J = pose_jacobians(self.layout, self.nominal, self.x, q, tool)
+        if offset_m is not None:
+            d = np.broadcast_to(np.asarray(offset_m, dtype=float), (J.shape[0], 3))
+            J = J.copy()
+            J[:, 3:6] -= so3.skew(d) @ J[:, 0:3]
         radius = lambda L, rows: np.sqrt(np.sum((J[:, rows] @ L) ** 2, axis=(1, 2)))  # sqrt(tr(J L L^T J^T))
         pos, rot = slice(3, 6), slice(0, 3)
         C, C0 = self.cov_factor, self.prior_factor
@@ -121,6 +130,11 @@ class Uncertainty:
                "position_unidentified_m": radius(C0, pos), "orientation_unidentified_rad": radius(C0, rot)}  # fmt: skip
         out["position_total_m"] = np.hypot(out["position_m"], out["position_unidentified_m"])
         return out
+
+    def robot(self, tool: int = 0) -> ZRPRobot:
+        """The calibrated arm this covariance is about (the model's frame), ending at tool
+        ``tool``'s point: where :meth:`predict`'s ``offset_m`` starts."""
+        return self.layout.robot(self.nominal, self.x, tool=tool)
 
     def position_m(self, q: ArrayLike, tool: ArrayLike | int = 0) -> Array:
         """The predicted 1-sigma position error radius (M,), m, both parts, at poses q (M, n);

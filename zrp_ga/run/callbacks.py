@@ -167,6 +167,14 @@ class ConvergenceLog(Callback):
         self._file.close()
 
 
+def write_rows(path: str | Path, rows: list[dict]) -> None:
+    """``convergence.csv`` of a finished run from its rows (:attr:`zrp_ga.algorithms.Result.rows`),
+    the lines :class:`ConvergenceLog` writes as the run goes (a calibration saved after the fact)."""
+    with open(path, "w", newline="") as f:
+        f.write(",".join(COLUMNS) + "\r\n")
+        f.writelines(",".join(_cell(row.get(k, "")) for k in COLUMNS) + "\r\n" for row in rows)
+
+
 def _cell(v: object) -> str:
     """A value as ``csv.DictWriter`` writes it in :class:`ConvergenceLog` (floats by repr)."""
     if isinstance(v, (float, np.floating)):
