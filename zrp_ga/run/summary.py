@@ -63,10 +63,18 @@ def diagnostics(task: Task, first: bool, key: str, cache: Cache, sweep: Path | N
     if d is None:
         d = cache.diagnostics[key] = directory.shared(sweep, key, lambda: _compute(task), "diagnostics")
     if d["rank"] < d["model_rank"] and first and directory.first_to_ask(sweep, task.name):
-        warn(f"the calibration poses identify {d['rank']} of the {d['model_rank']} parameter combinations the model can "
-             f"identify ({d['n_params']} parameters); more poses would help. Unidentifiable:\n  "
-             + "\n  ".join(d["unidentifiable"]), log)  # fmt: skip
+        warn(identifiability_line(d), log, details=[f"unidentifiable: {u}" for u in d["unidentifiable"]])
     return d
+
+
+def identifiability_line(d: dict[str, Any]) -> str:
+    """The one console line of the identifiability warning (:func:`diagnostics`' figures
+    ``d``): what (the combinations the poses identify), how bad (how many stay at nominal),
+    what to do (more, or more varied, poses) and where the directions are listed."""
+    left = d["model_rank"] - d["rank"]
+    return (f"the calibration poses identify {d['rank']} of the {d['model_rank']} parameter combinations the model can "
+            f"identify ({d['n_params']} parameters): {left} stay at nominal; more (or more varied) poses would identify "
+            "them (the directions: summary.json's identifiability, and the log)")  # fmt: skip
 
 
 def _compute(task: Task) -> dict[str, Any]:
