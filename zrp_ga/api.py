@@ -399,13 +399,13 @@ def _precise(what: str, name: str, a) -> None:
         return
     dtype = np.dtype(dtype) if not hasattr(dtype, "kind") else dtype
     if dtype.kind == "c":
-        raise ValueError(f"{what}: {name} are complex numbers ({dtype}); give real numbers")
+        raise ValueError(f"{what}: {name} in complex numbers ({dtype}); give real numbers")
     if dtype.kind == "f" and np.finfo(dtype).eps > LOSSY_EPS:
         values = np.asarray(a)
         top = float(np.nanmax(np.abs(values))) if values.size and np.isfinite(values).any() else 1.0
         step = float(np.spacing(np.asarray(top, dtype=dtype)))
-        raise ValueError(f"{what}: {name} are {dtype}, whose steps are {step:.3g} at their largest value {top:.4g} "
-                         f"({np.finfo(dtype).precision} significant digits): precision lost before the calibration; "
+        raise ValueError(f"{what}: {name} in {dtype}: steps of {step:.3g} at the largest value {top:.4g} "
+                         f"({np.finfo(dtype).precision} significant digits), precision lost before the calibration; "
                          "give float32 or float64 (if they were measured so, .astype(float) to use them anyway)")  # fmt: skip
 
 

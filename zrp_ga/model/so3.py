@@ -126,8 +126,9 @@ def check_rotations(R: ArrayLike, what: str, where: tuple[str, ...] | None = Non
     ValueError: orientations, row 1: not a rotation matrix (a mirror (det R = -1))
     """
     R = np.asarray(R, dtype=float)
-    off = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-2, -1))
-    det = np.linalg.det(R)
+    with np.errstate(invalid="ignore"):  # NaN in a matrix: refused below, not warned about
+        off = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-2, -1))
+        det = np.linalg.det(R)
     bad = np.flatnonzero(~(off <= ROTATION_TOL) | ~(np.abs(det - 1.0) <= ROTATION_TOL))  # NaN: not a rotation
     if bad.size:
         k = int(bad[0])
