@@ -79,8 +79,8 @@ def diagnostics(p: Prepared, cache: Cache, sweep: Sweep | None) -> dict[str, Any
     its data (:func:`zrp_ga.run.summary.diagnostics`); in a sweep, each once per problem instance."""
     from zrp_ga.run import summary
 
-    for w in getattr(p.task, "warnings", ()):  # what the problem found while it was built: before the work, once a sweep
-        if sweep is None or directory.first_to_ask(sweep.dir, f"warning {p.instance} {w}"):
+    for w in getattr(p.task, "warnings", ()):  # what the problem found while it was built: before the work
+        if first_in_sweep(sweep, p.instance, w):
             warn(w, log)
     return summary.diagnostics(p.task, p.state is None, p.instance, cache, _where(sweep))
 
@@ -96,9 +96,21 @@ def finish(p: Prepared, result: Any, figures: dict[str, Any], cache: Cache, swee
         summary.write(p.out, p.task, result, written, x)
     said = set(getattr(p.task, "warnings", ()))  # the problem's own were said at the start (diagnostics)
     for w in written["warnings"]:
-        if w not in said and (sweep is None or directory.first_to_ask(sweep.dir, f"warning {p.instance} {kind(w)}")):
-            warn(w + (" (this sweep's other jobs on this instance: in their summary.json)" if sweep else ""), log)
+        if w not in said and first_in_sweep(sweep, p.instance, w):
+            warn(w + (" (said once in this sweep: every job's summary.json has its own)" if sweep else ""), log)
     return result, written
+
+
+def first_in_sweep(sweep: Sweep | None, instance: str, warning: str) -> bool:
+    """Whether to say ``warning`` on the console: always outside a sweep; in a sweep, when no
+    job said the same text before, nor a warning of its :func:`kind` on the same problem
+    ``instance`` (a marker in the sweep's folder, :func:`zrp_ga.run.directory.first_to_ask`:
+    every job process sees it)."""
+    if sweep is None:
+        return True
+    text = directory.first_to_ask(sweep.dir, f"warning {warning}")
+    of_kind = directory.first_to_ask(sweep.dir, f"warning {instance} {kind(warning)}")
+    return text and of_kind
 
 
 def kind(warning: str) -> str:

@@ -56,13 +56,14 @@ def model_rank(task: Task) -> int:
 
 def diagnostics(task: Task, first: bool, key: str, cache: Cache, sweep: Path | None = None) -> dict[str, Any]:
     """The identifiability of the calibration data, and a warning when it carries less than the
-    model could identify (once per sweep and problem instance; not again when resuming).
+    model could identify (one line, the directions in the log files; once per sweep for each
+    text; not again when resuming).
     ``key``: the problem instance's key; the figures are computed once per instance in this
     process (``cache``) and once per ``sweep``, which keeps them beside its manifest."""
     d = cache.diagnostics.get(key)
     if d is None:
         d = cache.diagnostics[key] = directory.shared(sweep, key, lambda: _compute(task), "diagnostics")
-    if d["rank"] < d["model_rank"] and first and directory.first_to_ask(sweep, task.name):
+    if d["rank"] < d["model_rank"] and first and directory.first_to_ask(sweep, identifiability_line(d)):  # once a sweep
         warn(identifiability_line(d), log, details=[f"unidentifiable: {u}" for u in d["unidentifiable"]])
     return d
 
