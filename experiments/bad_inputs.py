@@ -34,6 +34,12 @@ def _report_rows(folder: Path) -> list[tuple[str, str, str, str]]:
     (folder / "afile").write_text("x")
     subprocess.run([sys.executable, "-m", "zrp_ga.cli", "problem.n_validation=5", "population.generations=2", "progress=false",
                     f"hydra.run.dir={folder / 'runs' / 'good'}"], check=True, capture_output=True)  # fmt: skip
+    import shutil
+
+    fifo = folder / "runs" / "fifo"  # a copy of the good run whose convergence.csv is a FIFO (a named pipe)
+    shutil.copytree(folder / "runs" / "good", fifo)
+    (fifo / "convergence.csv").unlink()
+    os.mkfifo(fifo / "convergence.csv")
     for name, last in (("broken", "0."), ("minus-inf", "-inf\n")):
         run = folder / "runs" / name
         run.mkdir(parents=True)
@@ -49,9 +55,12 @@ def _report_rows(folder: Path) -> list[tuple[str, str, str, str]]:
         out = (proc.stderr.strip() or proc.stdout.strip()).splitlines()
         said = [x for x in out if "error" in x or "left out" in x] or out[:1]
         for line in said:
+            k, w = kind, what
             if "minus-inf" in line:  # the run beside the truncated one
-                kind, what = "non-finite number", "a run whose convergence.csv holds -inf (left out, named, the rest go on)"
-            rows.append((kind, what, "zrp-ga-report " + " ".join(args), line))
+                k, w = "non-finite number", "a run whose convergence.csv holds -inf (left out, named, the rest go on)"
+            if "FIFO" in line:
+                k, w = "report: not a regular file", "a run whose convergence.csv is a FIFO (left out unread, named, the rest go on)"
+            rows.append((k, w, "zrp-ga-report " + " ".join(args), line))
     return rows
 
 

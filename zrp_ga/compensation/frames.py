@@ -32,8 +32,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga.model import so3
-from zrp_ga.model.so3 import ROTATION_TOL, check_rotations  # the one check of rotations, re-exported
 from zrp_ga.model.robot import ZRPRobot
+from zrp_ga.model.so3 import ROTATION_TOL, check_rotations  # the one check of rotations, re-exported
 
 Array = NDArray[np.float64]
 PARALLEL_RAD = 1e-3  # axes 1 and 2 closer to parallel than this have no common normal's foot
