@@ -44,6 +44,10 @@ SURVIVAL = "tests/test_survival.py"
 COMP_FRAMES = "tests/test_compensation_frames.py"
 COMP_TABLES = "tests/test_compensation_tables.py"
 COMP_INPUTS = "tests/test_compensation_inputs.py"
+IDENTIFIED = "tests/test_identified.py"
+MASKS = "tests/test_parameter_masks.py"
+API_INPUTS = "tests/test_api_inputs.py"
+CONSOLE = "tests/test_console_warnings.py"
 
 PLANTS: list[dict] = [
     # --- operators: the distributions ---------------------------------------------------------
@@ -263,6 +267,70 @@ PLANTS: list[dict] = [
          old="    if dp > NOMINAL_SLACK * cp + NOMINAL_FLOOR_M or da > NOMINAL_SLACK * ca + NOMINAL_FLOOR_RAD:",
          new="    if False:", tests=[COMP_INPUTS],
          what="compensation: a --nominal arm that is not the run's accepted"),
+    # --- issue 27 item 5: the code added since (identified subspace, uncertainty, coverage, robust
+    # loss, noise, ROS file, targets, sizes), masks, units of a small volume, the API's inputs, warnings
+    dict(name="subspace-se-rule-doubled", file="zrp_ga/model/subspace.py",
+         old="1.0 / np.maximum(s[:exact], 1e-300) <= max_se", new="1.0 / np.maximum(s[:exact], 1e-300) <= 2 * max_se",
+         tests=[f"{IDENTIFIED}::test_identified_directions_are_those_whose_standard_error_is_small"], what="identified subspace: directions kept up to twice the standard error problem.max_se allows"),
+    dict(name="subspace-prior-uniform-factor", file="zrp_ga/model/subspace.py",
+         old="factor = prior[:, None] * W[:, rank:] / np.sqrt(3.0)", new="factor = prior[:, None] * W[:, rank:]",
+         tests=[f"{IDENTIFIED}::test_what_is_left_at_nominal_has_the_covariance_of_a_uniform_error_within_the_prior"], what="uncertainty of what was left at nominal: the prior's +-p taken as its standard deviation (not p/sqrt 3)"),
+    dict(name="uncertainty-total-summed", file="zrp_ga/model/uncertainty.py",
+         old='out["position_total_m"] = np.hypot(out["position_m"], out["position_unidentified_m"])',
+         new='out["position_total_m"] = out["position_m"] + out["position_unidentified_m"]',
+         tests=[f"{IDENTIFIED}::test_the_total_predicted_error_adds_the_two_parts_in_quadrature"], what="predicted error: the identified and unidentified parts added instead of in quadrature"),
+    dict(name="uncertainty-noise-one-axis", file="zrp_ga/model/uncertainty.py",
+         old="(3 * self.noise_m**2 if noise else 0.0)", new="(self.noise_m**2 if noise else 0.0)",
+         tests=[f"{IDENTIFIED}::test_predicted_validation_rms_agrees_with_the_measured_one"], what="predicted validation RMS: the noise of one coordinate instead of three"),
+    dict(name="coverage-gap-mean", file="zrp_ga/model/coverage.py",
+         old="return float(d[:, 1].max())", new="return float(d[:, 1].mean())",
+         tests=[f"{IDENTIFIED}::test_coverage_ranges_and_distances_by_brute_force"], what="coverage: the gap as the mean nearest distance instead of the largest"),
+    dict(name="robust-huber-offset", file="zrp_ga/problems/robust.py",
+         old="return np.where(big, 2.0 * root - 1.0, z)", new="return np.where(big, 2.0 * root, z)",
+         tests=[f"{IDENTIFIED}::test_huber_is_scipys_by_hand"], what="Huber's loss without its -1 (not continuous at the scale)"),
+    dict(name="noise-mad-unscaled", file="zrp_ga/problems/identify.py",
+         old="MAD = 1.4826  # median absolute deviation", new="MAD = 1.0  # median absolute deviation",
+         tests=[f"{IDENTIFIED}::test_planted_outliers_are_named_by_line_and_the_robust_fit_ignores_them"], what="robust noise: the median absolute deviation not scaled to a standard deviation"),
+    dict(name="ros-base-link-turn", file="zrp_ga/io/ros_calibration.py",
+         old='start = np.diag([-1.0, -1.0, 1.0, 1.0]) if world == "base_link" else np.eye(4)',
+         new='start = np.eye(4)', tests=["tests/test_ros_calibration.py"],
+         what="ur_description's file: base_link_inertia's half turn about z left out"),
+    dict(name="targets-partial-by-default", file="zrp_ga/core/targets.py",
+         old='partial = node.get("_partial_", False) if partial is None else partial',
+         new='partial = node.get("_partial_", True) if partial is None else partial', tests=["tests/test_targets.py"],
+         what="_target_ specs built as partials unless they say otherwise (Hydra builds them)"),
+    dict(name="size-parameters-one-matrix", file="zrp_ga/problems/size.py",
+         old='"parameters": FLOAT * 8 * K * K,', new='"parameters": FLOAT * K * K,', tests=["tests/test_budget.py"],
+         what="budget: the parameter matrices counted once instead of eight K x K matrices"),
+    dict(name="mask-last-tool-unnamed", file="zrp_ga/model/layout.py",
+         old='for c in "xyz"] for t in range(2, layout.n_tools + 1)})', new='for c in "xyz"] for t in range(2, layout.n_tools)})',
+         tests=[f"{MASKS}::test_every_offered_name_can_be_named_and_fixes_what_it_stands_for"], what="masks: the last tool, offered by the refusal's list of valid names, cannot be named"),
+    dict(name="mask-links-of-one-joint", file="zrp_ga/model/layout.py",
+         old="    if n >= 2:  # a one-joint arm has no link between two axes\n", new="    if True:\n",
+         tests=[f"{MASKS}::test_every_offered_name_can_be_named_and_fixes_what_it_stands_for", f"{MASKS}::test_names_not_offered_are_refused"], what="masks: a one-joint arm accepts links, which stand for no parameter"),
+    dict(name="units-small-volume", file="zrp_ga/io/measurements.py",
+         old="spread * LENGTH[u] >= 0.01 * reach]", new="spread * LENGTH[u] >= 0.03 * reach]",
+         tests=["tests/test_measurement_files.py::test_a_small_measured_volume_is_read_in_the_unit_it_was_written_in"], what="units: a measured volume under 3% of the reach (a 4 cm cube for a UR10) cannot be told metres"),
+    dict(name="api-rotations-unchecked", file="zrp_ga/api.py",
+         old="    so3.check_rotations(R, ", new="    (lambda *a: None)(R, ", tests=[f"{API_INPUTS}::test_rotation_matrices_that_are_no_rotations_are_refused_naming_the_row"],
+         what="API: rotation matrices given in memory not checked to be rotations"),
+    dict(name="api-seed-string-iterated", file="zrp_ga/api.py",
+         old="if isinstance(seed, (str, bytes)) or not isinstance(seed, (Sequence, np.ndarray)):",
+         new="if not isinstance(seed, (str, Sequence, np.ndarray)):", tests=[f"{API_INPUTS}::test_a_seed_that_is_no_whole_number_is_refused"],
+         what='API: seed="abc" read as the list of seeds a, b, c'),
+    dict(name="api-float16-accepted", file="zrp_ga/api.py",
+         old="LOSSY_EPS = 1e-6", new="LOSSY_EPS = 1e-2", tests=[f"{API_INPUTS}::test_float16_numbers_are_refused_with_the_step_they_lose"],
+         what="API: float16 numbers (3 significant digits) taken without a word"),
+    dict(name="api-validation-alone", file="zrp_ga/api.py",
+         old="        if validation is not None and data is None:\n", new="        if False:\n", tests=[f"{API_INPUTS}::test_validation_without_data_is_refused_not_a_simulated_calibration"],
+         what="API: validation data without calibration data silently calibrate a simulated problem"),
+    dict(name="warning-details-on-console", file="zrp_ga/core/errors.py",
+         old="handlers += [h for h in logger.handlers if isinstance(h, logging.FileHandler)]",
+         new="handlers += list(logger.handlers)", tests=[f"{CONSOLE}::test_the_default_run_says_one_line_per_warning_and_keeps_the_details"],
+         what="warnings: the details (every unidentifiable direction) printed on the console too"),
+    dict(name="warning-per-job", file="zrp_ga/run/assembly.py",
+         old="    return text and of_kind\n", new="    return True\n", tests=[f"{CONSOLE}::test_a_sweep_says_each_warning_once_not_per_job"],
+         what="warnings: every job of a sweep says the same warning again"),
 ]
 
 

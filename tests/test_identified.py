@@ -290,3 +290,46 @@ def test_the_instruments_deviations_are_the_noise_when_the_residual_agrees_with_
         assert nz.source.startswith(source) and abs(nz.chi2_dof / (5e-5 / stated) ** 2 - 1) < 0.15
         expected = stated if source == "instrument" else nz.sigma["position"]
         assert np.allclose(nz.row_sigma, expected)
+
+
+def test_huber_is_scipys_by_hand():
+    """scipy's huber: rho(z) = z for z <= 1, 2 sqrt(z) - 1 beyond (continuous, with its slope,
+    at z = 1); rho'(z) = 1, then 1 / sqrt(z)."""
+    from zrp_ga.problems.robust import rho
+
+    z = np.array([0.0, 0.25, 1.0, 1.0 + 1e-12, 4.0, 100.0])
+    value, slope = rho(z, "huber")
+    assert np.allclose(value, [0.0, 0.25, 1.0, 1.0, 3.0, 19.0], rtol=0, atol=1e-9)
+    assert np.allclose(slope, [1.0, 1.0, 1.0, 1.0, 0.5, 0.1], rtol=0, atol=1e-9)
+
+
+def test_the_total_predicted_error_adds_the_two_parts_in_quadrature(rng):
+    """Identified and unidentified parts are independent: the total radius is sqrt(a^2 + b^2) of
+    the two radii sampled here from their covariances (not their sum)."""
+    robot = presets.get("puma560")
+    layout = Layout(6)
+    A, B = rng.normal(size=(36, 5)) * 2e-4, rng.normal(size=(36, 3)) * 3e-4
+    u = uncertainty.Uncertainty(layout, robot, np.zeros(36), A, B, 0.0)
+    q = simulation.random_joints(robot, 3, rng)
+    p0 = kinematics.forward(robot, q)[1]
+    draws = rng.standard_normal((4000, 5)) @ A.T + rng.standard_normal((4000, 3)) @ B.T  # both parts at once
+    moved = np.array([kinematics.forward(layout.robot(robot, d), q)[1] - p0 for d in draws])
+    sampled = np.sqrt(np.mean(np.sum(moved**2, axis=2), axis=0))
+    assert np.allclose(u.predict(q)["position_total_m"], sampled, rtol=0.06)
+
+
+def test_what_is_left_at_nominal_has_the_covariance_of_a_uniform_error_within_the_prior(rng):
+    """The prior factor F of the dropped directions: F F^T is the covariance of an error uniform
+    within +-p (p^2 / 3 per gene, sampled here) projected onto the directions the data leave at
+    nominal, in the prior-scaled genome."""
+    K = 8
+    prior = rng.uniform(1e-4, 1e-3, K)
+    J = rng.normal(size=(20, K))
+    J[:, 5:] = 0.0  # the poses see genes 0..4 only
+    S = subspace.identify(J, np.zeros((0, K)), prior, None)
+    assert S.rank == 5
+    X = rng.uniform(-1, 1, (200_000, K)) * prior  # uniform within +-p
+    Wd = np.eye(K)[:, 5:]  # the dropped directions in the scaled genome: genes 5..7
+    left = (X / prior) @ Wd @ Wd.T * prior
+    F = S.prior_factor
+    assert np.allclose(F @ F.T, np.cov(left.T), rtol=0, atol=0.02 * prior.max() ** 2 / 3)

@@ -214,3 +214,37 @@ def test_points_too_close_together_for_either_unit_ask_for_it(tmp_path):
     message = _error(_file(tmp_path, "\n".join([HEAD, *rows]) + "\n"), zrp_format(6, "auto", "auto"))
     assert "cannot tell metres from millimetres; set problem.length_unit=m or mm" in message
     assert read(_file(tmp_path, "\n".join([HEAD, *rows]) + "\n", "mm.csv"), zrp_format(6, "mm", "auto"), UR10).units == ("mm", "rad")
+
+
+def _small_volume_rows(side_m: float, scale: float, seed: int = 5) -> tuple[str, np.ndarray]:
+    """A tracker's points of a UR10 end point moving within a cube of side ``side_m`` about a
+    point 0.8 m out (a tool-centre-point calibration near one spot), written in file units
+    (``scale`` per metre); the true points in metres."""
+    rng = np.random.default_rng(seed)
+    p = np.array([0.8, 0.1, 0.4]) + rng.uniform(-side_m / 2, side_m / 2, (30, 3))
+    q = rng.uniform(-1, 1, (30, 6))
+    rows = [",".join([*(repr(float(v)) for v in qi), *(repr(float(v * scale)) for v in pi)]) for qi, pi in zip(q, p)]
+    return "\n".join([HEAD, *rows]) + "\n", p
+
+
+@pytest.mark.parametrize("side_mm", [40, 100, 400])
+@pytest.mark.parametrize("unit, scale", [("m", 1.0), ("mm", 1e3)])
+def test_a_small_measured_volume_is_read_in_the_unit_it_was_written_in(tmp_path, side_mm, unit, scale):
+    """Points within a 4 cm cube (2.4% of the UR10's 1.68 m reach, the region a tool-point
+    calibration may cover) are read in metres from a file in metres and in millimetres from a
+    file in millimetres: the truth, known here, comes back in metres either way."""
+    text, truth = _small_volume_rows(side_mm * 1e-3, scale)
+    data = read(_file(tmp_path, text), zrp_format(6, "auto", "auto"), UR10)
+    assert data.units[0] == unit
+    np.testing.assert_allclose(data.p, truth, rtol=0, atol=1e-12)
+
+
+def test_a_volume_below_a_hundredth_of_the_reach_asks_for_the_unit(tmp_path):
+    """A 1 cm cube (under 1% of the reach: 1.7 cm): in metres it could be millimetres of
+    another calibration's spread, so the unit is asked for, and read as stated."""
+    reach = float(np.linalg.norm(UR10.b0[1:], axis=1).sum())  # the arm's reach, by its body vectors
+    assert 1.6 < reach < 1.8  # 1.68 m: the body vectors of the shipped UR10, wrist and flange included
+    text, truth = _small_volume_rows(0.01, 1.0)
+    assert "cannot tell metres from millimetres" in _error(_file(tmp_path, text), zrp_format(6, "auto", "auto"))
+    data = read(_file(tmp_path, text, "m.csv"), zrp_format(6, "m", "auto"), UR10)
+    np.testing.assert_allclose(data.p, truth, rtol=0, atol=1e-12)

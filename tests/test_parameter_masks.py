@@ -208,3 +208,93 @@ def test_bad_names_are_refused_in_one_line(tmp_path):
         zrp_ga.calibrate("puma560", algorithm="lm", problem={"free": "[hand]"})
     with pytest.raises(ValueError, match="every parameter would be fixed"):
         zrp_ga.calibrate("puma560", algorithm="lm", problem={"fixed": "[axes,b0_2,links,tool]"})
+
+
+# --- every name the message offers can be named, and every name accepted is offered -----------------
+def _offered(message: str) -> set[str]:
+    """The names a refusal's ``valid: ...`` part offers, read from its text: ranges ``u0_1..u0_6``
+    and ``tool2..tool3`` expanded, the group words as written."""
+    valid = message.split("valid: ", 1)[1]
+    out: set[str] = set()
+    for stem, lo, hi in __import__("re").findall(r"\b(u0_|b0_)(\d+)\.\.(?:u0_|b0_)(\d+) \(", valid):
+        out |= {f"{stem}{i}" for i in range(int(lo), int(hi) + 1)}
+    for lo, hi in __import__("re").findall(r"\(tool(\d+)\.\.tool(\d+)\)", valid):
+        out |= {f"tool{i}" for i in range(int(lo), int(hi) + 1)}
+    for word in ("axes", "links", "tool", "base", "hand", "tools"):
+        if __import__("re").search(rf"(^|, ){word}\b", valid):
+            out.add(word)
+    return out
+
+
+def _genes(name: str, n: int, base: bool, hand: bool, tools: int) -> set[str]:
+    """What each name stands for, written here from docs/model.md 3.1 (not from the code's table)."""
+    xyz = lambda stem, tail="": {f"{stem}{c}{tail}" for c in "xyz"}
+    if name == "axes":
+        return set().union(*(xyz(f"u0_{i}") for i in range(1, n + 1)))
+    if name == "links":
+        return set().union(set(), *(xyz(f"b0_{i}") for i in range(2, n + 1)))
+    if name == "tool":
+        return xyz(f"b0_{n + 1}")
+    if name == "base":
+        return xyz("b0_1")
+    if name == "hand":
+        return xyz("rh_")
+    if name == "tools":
+        return set().union(*(xyz(f"b0_{n + 1}", f"_tool{t}") for t in range(2, tools + 2)))
+    if name.startswith("tool"):
+        return xyz(f"b0_{n + 1}", f"_{name}")
+    return xyz(name)
+
+
+LAYOUTS = [Layout(6), Layout(6, base=True, hand=True), Layout(6, base=True, tools=((0.1, 0, 0), (0, 0.1, 0))), Layout(1),
+           Layout(2, base=True), Layout(12, base=True, hand=True, tools=((0, 0, 0.2),))]  # fmt: skip
+
+
+@pytest.mark.parametrize("layout", LAYOUTS, ids=lambda L: f"n{L.n}-base{int(L.base)}-hand{int(L.hand)}-tools{len(L.tools)}")
+def test_every_offered_name_can_be_named_and_fixes_what_it_stands_for(layout):
+    with pytest.raises(ValueError) as exc:
+        mask(layout, fixed=["nothere"])
+    offered = _offered(str(exc.value))
+    n, tools = layout.n, len(layout.tools)
+    expected = {f"u0_{i}" for i in range(1, n + 1)} | {f"b0_{i}" for i in range(1 if layout.base else 2, n + 2)}
+    expected |= {"axes", "tool"} | ({"links"} if n >= 2 else set()) | ({"base"} if layout.base else set()) | ({"hand"} if layout.hand else set())
+    expected |= ({"tools"} | {f"tool{t}" for t in range(2, tools + 2)}) if tools else set()
+    assert offered == expected
+    for name in sorted(offered):
+        genes = _genes(name, n, layout.base, layout.hand, tools)
+        if len(genes) == layout.full_size:
+            continue
+        fixed = set(mask(layout, fixed=[name]).fixed)
+        assert fixed == genes, name
+        free = set(layout.full_names) - set(mask(layout, free=[name]).fixed)
+        assert free == genes, name
+    for gene in layout.full_names:  # "or one component such as b0_3x": every gene by its name
+        assert mask(layout, fixed=[gene]).fixed == (gene,)
+
+
+@pytest.mark.parametrize("layout", LAYOUTS, ids=lambda L: f"n{L.n}-base{int(L.base)}-hand{int(L.hand)}-tools{len(L.tools)}")
+def test_names_not_offered_are_refused(layout):
+    """Near misses of the offered names (one joint past the end, a base or hand the layout does
+    not hold, tool 1 by number, a tool past the last) are refused, so that what is accepted is
+    what the message lists."""
+    n = layout.n
+    candidates = ["u0_0", f"u0_{n + 1}", f"b0_{n + 2}", "b0_0", "tool1", f"tool{len(layout.tools) + 2}", "rh", "u0", "b0"]
+    candidates += ["b0_1"] * (not layout.base) + ["base"] * (not layout.base) + ["hand", "rh_x"] * (not layout.hand)
+    candidates += ["tools"] * (not layout.tools) + ["links"] * (n < 2)
+    for name in candidates:
+        with pytest.raises(ValueError, match=rf"problem.fixed: '{name}' is not a parameter of this problem"):
+            mask(layout, fixed=[name])
+
+
+def test_a_fixed_set_that_hides_every_free_parameter_says_what_to_do(tmp_path):
+    """Fixing the axes of a simulated arm whose axes are off: their errors (mm at the end point)
+    stay in the residual, and no free combination's standard error is small: one line that says
+    why and what to do (the names were accepted: the data refused)."""
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "problem=multipose", "problem.fixed=[axes]", "progress=false",
+                           f"hydra.run.dir={tmp_path}/run"], capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr[-2000:]
+    assert "their errors stay in the residual" in lines[0] and "problem.subspace=full" in lines[0]
+    ok = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "problem=multipose", "problem.fixed=[axes]", "problem.subspace=full",
+                         "algorithm=lm", "progress=false", f"hydra.run.dir={tmp_path}/full"], capture_output=True, text=True)  # fmt: skip
+    assert ok.returncode == 0, ok.stderr[-2000:]

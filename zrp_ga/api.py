@@ -29,6 +29,7 @@ from zrp_ga import config
 from zrp_ga.core import errors, schema, targets
 from zrp_ga.core.schema import ConfigError, MeasuredConf
 from zrp_ga.io.simulate import Simulated, simulate
+from zrp_ga.model import so3
 from zrp_ga.model.poses import Measurements
 from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.run.calibration import Calibration, Prediction, load
@@ -117,7 +118,10 @@ def calibrate(
     :class:`~zrp_ga.model.poses.Measurements`. In-memory numbers get the checks a file gets
     (one ValueError naming the row, counted from 0, and the column) and are in the units of
     ``problem={"length_unit": ..., "angle_unit": ...}``: ``auto`` (the default) detects metres or
-    millimetres, radians or degrees, and converts.
+    millimetres, radians or degrees, and converts. Rotation matrices must be rotations
+    (``R^T R = I`` and ``det R = +1`` within 1e-6, :data:`zrp_ga.model.so3.ROTATION_TOL`); numbers
+    in float16 (about 3 significant digits) or complex are refused; ``validation`` without
+    ``data`` is refused (a simulated problem draws its own validation poses).
 
     ``terms``: non-geometric terms fitted with the geometry (``problem.terms``,
     :mod:`zrp_ga.model.terms`), e.g. ``{"compliance": [2, 3], "harmonics": {"order": 1, "joints":
@@ -127,10 +131,11 @@ def calibrate(
     e.g. ``population={"mu": 50, "generations": 30}``, ``crossover="sbx"``,
     ``problem={"cost": "nonlinear"}``; a keyword (or a key of a dict) the config does not have
     is a TypeError naming the closest ones. ``out``: a directory to write the run's files into
-    (as ``zrp-ga`` writes them, with the same checks: a directory holding a run is refused).
+    (as ``zrp-ga`` writes them, with the same checks, made before any work: a file in the way, a
+    folder that cannot be written or a directory holding a run is refused).
     Warnings are Python warnings of class :class:`zrp_ga.ZrpGaWarning`.
 
-    ``seed``: a list of seeds gives a list of calibrations, one per seed, each what
+    ``seed``: a whole number >= 0; a list of distinct seeds gives a list of calibrations, one per seed, each what
     ``calibrate(..., seed=s)`` gives; GA runs on the same data (measured data given here) are
     evolved together, in one evaluation of all their offspring per generation. With ``out``,
     each run writes into ``out/seed_S``.
@@ -152,13 +157,51 @@ def calibrate(
             raise ValueError(f"calibrate(): terms= with problem={chosen!r}: give the problem's settings as problem={{...}} instead")
         settings = {**settings, "problem": {**(chosen or {}), "terms": terms}}
     with errors.python_warnings():
-        if isinstance(seed, (int, np.integer)):
-            return _calibrate(robot, data, validation, algorithm, [int(seed)], None if out is None else [out], progress, settings)[0]
-        seeds = [int(s) for s in seed]
-        if not seeds or len(set(seeds)) < len(seeds):
-            raise ValueError(f"calibrate(): seed: a list of distinct seeds, got {list(seed)}")
-        outs = None if out is None else [Path(out) / f"seed_{s}" for s in seeds]
+        if validation is not None and data is None:
+            raise ValueError("calibrate(): validation= was given without data=: validation data check a calibration on "
+                             "measured data; give the calibration data too (a simulated problem makes its own validation "
+                             "poses: problem={'n_validation': ...})")  # fmt: skip
+        seeds = _seeds(seed)
+        if seeds is None:
+            outs = None if out is None else [_out(out)]
+            return _calibrate(robot, data, validation, algorithm, [int(seed)], outs, progress, settings)[0]
+        outs = None if out is None else [_out(Path(_out(out)) / f"seed_{s}") for s in seeds]
         return _calibrate(robot, data, validation, algorithm, seeds, outs, progress, settings)
+
+
+def _seeds(seed: Any) -> list[int] | None:
+    """None for one seed (a whole number >= 0), the seeds of a list of distinct ones; a
+    ValueError on one line for anything else: a string (not read as a list of characters), a
+    float, a bool, a negative number, repeats."""
+    from zrp_ga.core import checks
+
+    single = isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_))
+    if single:
+        checks.seed(int(seed), "calibrate(): seed")
+        return None
+    wanted = "a whole number >= 0, or a list of distinct ones"
+    if isinstance(seed, (str, bytes)) or not isinstance(seed, (Sequence, np.ndarray)):
+        raise ValueError(f"calibrate(): seed: {wanted}, got {seed!r}")
+    seeds = list(seed)
+    for s in seeds:
+        if isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer)) or s < 0:
+            raise ValueError(f"calibrate(): seed: {wanted}, got {s!r} in {seeds!r}")
+    seeds = [int(s) for s in seeds]
+    if not seeds or len(set(seeds)) < len(seeds):
+        raise ValueError(f"calibrate(): seed: a list of distinct seeds, got {seeds}")
+    return seeds
+
+
+def _out(out: Any) -> Path:
+    """``out`` as a directory a run can be written into, checked before any work (one line: no
+    file in the way, a writable folder on the way, no run in it already)."""
+    from zrp_ga.core import files
+    from zrp_ga.run import directory
+
+    path = files.writable_dir(out, "calibrate(): out")
+    if directory.holds_run(path):
+        raise ValueError(f"calibrate(): out: {path} already holds a run; choose another directory")
+    return path
 
 
 def _calibrate(robot: ZRPRobot | str | Path, data: MeasurementData | None, validation: MeasurementData | None, algorithm: str,
@@ -242,10 +285,13 @@ def _table(data: MeasurementData, what: str) -> tuple[pd.DataFrame, np.ndarray |
     import pandas as pd
 
     if isinstance(data, pd.DataFrame):
+        for column in data.columns:
+            _precise(what, f"column {column!r}", data[column])
         return data, None
     if isinstance(data, Measurements):
         names = data.tool_names or ("tool",)
-        return _frame(what, data.q, data.p, None, data.std, None if data.tool is None else np.asarray(names)[data.tool]), data.R
+        frame = _frame(what, data.q, data.p, None, data.std, None if data.tool is None else np.asarray(names)[data.tool])
+        return frame, _rotations(what, data.R, len(frame))
     if isinstance(data, (tuple, list)) and len(data) in (2, 3):
         frame = _frame(what, *data)
         return frame, _rotations(what, data[2] if len(data) == 3 else None, len(frame))
@@ -295,7 +341,30 @@ def _frame(what: str, q: ArrayLike, p: ArrayLike, o: ArrayLike | None = None, st
     return pd.DataFrame(cols)
 
 
+LOSSY_EPS = 1e-6  # a float type with a relative step above this (float16's 1e-3: about 1 mm at 1 m) is refused
+
+
+def _precise(what: str, name: str, a) -> None:
+    """ValueError on one line for numbers held in a type that loses what a calibration needs: a
+    float type of fewer than 7 significant digits (float16: steps of about 1 mm at 1 m, 0.25
+    degrees at 180), complex numbers. float32 (7 digits: 0.1 um at 1 m) passes."""
+    dtype = getattr(a, "dtype", None)
+    if dtype is None:
+        return
+    dtype = np.dtype(dtype) if not hasattr(dtype, "kind") else dtype
+    if dtype.kind == "c":
+        raise ValueError(f"{what}: {name} in complex numbers ({dtype}); give real numbers")
+    if dtype.kind == "f" and np.finfo(dtype).eps > LOSSY_EPS:
+        values = np.asarray(a)
+        top = float(np.nanmax(np.abs(values))) if values.size and np.isfinite(values).any() else 1.0
+        step = float(np.spacing(np.asarray(top, dtype=dtype)))
+        raise ValueError(f"{what}: {name} in {dtype}: steps of {step:.3g} at the largest value {top:.4g} "
+                         f"({np.finfo(dtype).precision} significant digits), precision lost before the calibration; "
+                         "give float32 or float64 (if they were measured so, .astype(float) to use them anyway)")  # fmt: skip
+
+
 def _array(what: str, name: str, a: ArrayLike, ndim: int) -> np.ndarray:
+    _precise(what, name, a)
     try:
         array = np.asarray(a, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -316,4 +385,5 @@ def _rotations(what: str, o: ArrayLike | None, M: int) -> np.ndarray | None:
                          f"got {R.shape}")  # fmt: skip
     if R.shape[0] != M:
         raise ValueError(f"{what}: {R.shape[0]} rotation matrices for {M} measurements (one per row of q)")
+    so3.check_rotations(R, f"{what}: orientations", tuple(f"row {k}" for k in range(M)))  # R^T R = I, det R = +1
     return R

@@ -33,9 +33,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga.model import so3
 from zrp_ga.model.robot import ZRPRobot
+from zrp_ga.model.so3 import ROTATION_TOL, check_rotations  # the one check of rotations, re-exported
 
 Array = NDArray[np.float64]
-ROTATION_TOL = 1e-6  # |R^T R - I| of a transform's rotation part, and |det R - 1|
 PARALLEL_RAD = 1e-3  # axes 1 and 2 closer to parallel than this have no common normal's foot
 
 
@@ -73,19 +73,6 @@ def check_transform(T: ArrayLike, what: str) -> Array:
     if np.abs(T[3] - [0, 0, 0, 1]).max() > ROTATION_TOL:
         raise ValueError(f"{what}: the last row of a transform is 0 0 0 1, got {T[3].tolist()}")
     return T
-
-
-def check_rotations(R: Array, what: str, where: tuple[str, ...] | None = None) -> None:
-    """ValueError naming ``what`` (and ``where[k]``, the first bad one) unless every ``R[k]``
-    (M, 3, 3) is a rotation: ``R^T R = I`` and ``det R = 1`` within :data:`ROTATION_TOL`."""
-    off = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-2, -1))
-    det = np.linalg.det(R)
-    bad = np.flatnonzero((off > ROTATION_TOL) | (np.abs(det - 1.0) > ROTATION_TOL))
-    if bad.size:
-        k = int(bad[0])
-        at = f", {where[k]}" if where is not None else f" [{k}]" if len(R) > 1 else ""
-        why = "a mirror (det R = -1)" if det[k] < 0 else f"R^T R differs from I by {off[k]:.3g}, det R = {det[k]:.6g}"
-        raise ValueError(f"{what}{at}: not a rotation matrix ({why})")
 
 
 def work_object(origin: ArrayLike, on_x: ArrayLike, in_xy: ArrayLike) -> Array:

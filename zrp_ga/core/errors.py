@@ -12,7 +12,7 @@ import contextlib
 import contextvars
 import logging
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 
 class ZrpGaWarning(UserWarning):
@@ -22,15 +22,39 @@ class ZrpGaWarning(UserWarning):
 _seen: contextvars.ContextVar[set[str] | None] = contextvars.ContextVar("zrp_ga_python_warnings", default=None)
 
 
-def warn(message: str, log: logging.Logger | None = None, category: type[ZrpGaWarning] = ZrpGaWarning) -> None:
-    """``message`` as a Python warning inside :func:`python_warnings` (once per message), else
-    as a warning of ``log`` (the caller's logger)."""
+def warn(message: str, log: logging.Logger | None = None, category: type[ZrpGaWarning] = ZrpGaWarning,
+         details: Sequence[str] = ()) -> None:  # fmt: skip
+    """``message`` (one line: what, how bad, what to do) as a Python warning inside
+    :func:`python_warnings` (once per message), else as a warning of ``log`` (the caller's
+    logger); its ``details`` (lines) go to the log files only (:func:`to_log_files`), never to
+    the console."""
+    message = " ".join(message.split("\n"))  # one line, whatever the caller built
     seen = _seen.get()
     if seen is None:
-        (log or logging.getLogger("zrp_ga")).warning("%s", message)
+        logger = log or logging.getLogger("zrp_ga")
+        logger.warning("%s", message)
+        if details:
+            to_log_files(logger, logging.WARNING, [f"  {d}" for d in details])
     elif message not in seen:
         seen.add(message)
         warnings.warn(message, category, stacklevel=3)
+
+
+def to_log_files(log: logging.Logger, level: int, lines: Sequence[str]) -> None:
+    """``lines`` as records of ``log`` handed to the log files only: the file handlers of
+    ``log`` and of its ancestors (Hydra's job log, ``hydra.job_logging``), not the console's
+    stream handlers."""
+    handlers, logger = [], log
+    while logger is not None:
+        handlers += [h for h in logger.handlers if isinstance(h, logging.FileHandler)]
+        logger = logger.parent if logger.propagate else None
+    if not handlers or not log.isEnabledFor(level):
+        return
+    for line in lines:
+        record = log.makeRecord(log.name, level, "(details)", 0, "%s", (line,), None)
+        for h in handlers:
+            if record.levelno >= h.level:
+                h.handle(record)
 
 
 @contextlib.contextmanager

@@ -55,6 +55,7 @@ import yaml
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from zrp_ga.core.errors import to_log_files
 from zrp_ga.core.fileio import write_csv
 from zrp_ga.core.files import regular_file
 from zrp_ga.io import records, ros_calibration
@@ -601,8 +602,8 @@ def write_all(
         dh_to_yaml(table, paths[convention], comment="\n".join(header), near=None if like is None else like[convention])
         if table.beta.any():
             rows = ", ".join(str(i + 1) for i in np.flatnonzero(table.beta))
-            log.info("%s: row(s) %s use Hayati's parameterisation (nearly parallel axes; the file's notes say why)",
-                        paths[convention].name, rows)
+            to_log_files(log, logging.INFO, [f"{paths[convention].name}: row(s) {rows} use Hayati's parameterisation (nearly "
+                                             "parallel axes; the file's notes say why)"])  # a note on a file: the log, not the console
     paths["zrp"].write_text(_yaml_text(full.to_dict()))  # full.to_yaml(path), the same text: the terms included
     poses = {"base": base, "tool": tool}
     frames = {k: _identity_entry() if T is None else _frame_entry(check_transform(T, k)) for k, T in poses.items()}

@@ -366,7 +366,8 @@ def _groups(layout: Layout) -> dict[str, list[str]]:
     out = {f"u0_{i}": vec(f"u0_{i}") for i in range(1, n + 1)}
     out.update({f"b0_{i}": vec(f"b0_{i}") for i in range(1 if layout.base else 2, n + 2)})
     out["axes"] = [k for k in full if k.startswith("u0_")]
-    out["links"] = [f"b0_{i}{c}" for i in range(2, n + 1) for c in "xyz"]
+    if n >= 2:  # a one-joint arm has no link between two axes
+        out["links"] = [f"b0_{i}{c}" for i in range(2, n + 1) for c in "xyz"]
     out["tool"] = vec(f"b0_{n + 1}")
     if layout.base:
         out["base"] = vec("b0_1")
@@ -388,7 +389,7 @@ def valid_names(layout: Layout) -> str:
     n = layout.n
     first = 1 if layout.base else 2
     parts = [f"u0_1..u0_{n} (axis directions)", f"b0_{first}..b0_{n + 1} (body vectors{'; b0_1 = base' if layout.base else ''}; b0_{n + 1} = tool)",
-             "axes", f"links (b0_2..b0_{n})", "tool"]  # fmt: skip
+             "axes", *[f"links (b0_2..b0_{n})"] * (n >= 2), "tool"]  # fmt: skip
     parts += ["base"] * layout.base + ["hand (hand orientation)"] * layout.hand
     if layout.tools:
         parts.append(f"tools (tool2..tool{layout.n_tools})")

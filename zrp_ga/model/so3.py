@@ -17,6 +17,7 @@ R3 = NDArray[np.float64]  # (..., 3)
 SO3 = NDArray[np.float64]  # (..., 3, 3)
 
 _E = np.eye(3)
+ROTATION_TOL = 1e-6  # |R^T R - I| (largest element) and |det R - 1| a rotation matrix given to the program may have
 
 
 def skew(v: ArrayLike) -> SO3:
@@ -112,3 +113,26 @@ def rpy(R: ArrayLike) -> R3:
     c, s = np.cos(yaw), np.sin(yaw)
     M = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]) @ R
     return np.array([np.arctan2(-M[1, 2], M[1, 1]), np.arctan2(-M[2, 0], M[0, 0]), yaw]) + 0.0  # no -0.0
+
+
+def check_rotations(R: ArrayLike, what: str, where: tuple[str, ...] | None = None) -> None:
+    """ValueError naming ``what`` (and ``where[k]``, the first bad one) unless every ``R[k]``
+    (M, 3, 3) is a rotation: ``R^T R = I`` (largest element) and ``det R = 1`` within
+    :data:`ROTATION_TOL`, finite.
+
+    >>> check_rotations(np.stack([np.eye(3), np.diag([1.0, 1.0, -1.0])]), "orientations", ("row 0", "row 1"))
+    Traceback (most recent call last):
+    ...
+    ValueError: orientations, row 1: not a rotation matrix (a mirror (det R = -1))
+    """
+    R = np.asarray(R, dtype=float)
+    with np.errstate(invalid="ignore"):  # NaN in a matrix: refused below, not warned about
+        off = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-2, -1))
+        det = np.linalg.det(R)
+    bad = np.flatnonzero(~(off <= ROTATION_TOL) | ~(np.abs(det - 1.0) <= ROTATION_TOL))  # NaN: not a rotation
+    if bad.size:
+        k = int(bad[0])
+        at = f", {where[k]}" if where is not None else f" [{k}]" if len(R) > 1 else ""
+        why = ("NaN or inf in it" if not np.isfinite(R[k]).all() else "a mirror (det R = -1)" if det[k] < 0
+               else f"R^T R differs from I by {off[k]:.3g}, det R = {det[k]:.6g}; the tolerance is {ROTATION_TOL:g}")
+        raise ValueError(f"{what}{at}: not a rotation matrix ({why})")

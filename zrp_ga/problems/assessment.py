@@ -64,7 +64,8 @@ def assess(task: Task, x: Array, val_rms_m: float) -> Assessment:
             joints = [str(j + 1) for j, s in enumerate(np.mean(where.beyond, axis=0)) if s > MOST]
             beyond = f" (joint{'s' * (len(joints) > 1)} {', '.join(joints)} beyond the calibrated range)" if joints else ""
             notes.append(f"{where.share_outside:.0%} of the validation poses lie outside the joint-space region the calibration "
-                         f"poses cover{beyond}: the validation is extrapolation")  # fmt: skip
+                         f"poses cover{beyond}: the validation is extrapolation and says little about the calibrated "
+                         "region (validate within it, or calibrate over the region the arm will work in)")  # fmt: skip
     worse = False
     u: dict[str, Any] = {"available": unc is not None}
     if unc is not None:

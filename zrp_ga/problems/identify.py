@@ -231,7 +231,15 @@ def prepare(problem: CalibrationProblem, prior: Array, search_scale: float, c: P
     if c.subspace is SubspaceChoice.full:
         return problem, setup
     J = plain(problem, "jacobian", x)
-    setup.subspace = sub.identify(J[:-n], J[-n:], prior, nz.row_sigma, c.max_se)
+    try:
+        setup.subspace = sub.identify(J[:-n], J[-n:], prior, nz.row_sigma, c.max_se)
+    except ValueError as exc:
+        if not layout.is_masked:
+            raise
+        noise_mm = "" if nz.row_sigma is None else f" (the residual's noise: {np.median(nz.row_sigma) * 1e3:.3g} mm)"
+        raise ValueError(f"{exc}{noise_mm}; with parameters fixed (problem.fixed, problem.free), their errors stay in the "
+                         "residual and may hide every free one: fix fewer, or calibrate the free ones all the same with "
+                         "problem.subspace=full") from None  # fmt: skip
     half = sub.half_widths(setup.subspace, search_scale)
     restricted = sub.restricted(layout, setup.subspace)
     return dataclasses.replace(problem, layout=restricted, lower=-half, upper=half, unit_weight=0.0), setup

@@ -33,7 +33,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from zrp_ga.core.errors import warn
 from zrp_ga.core.schema import Format, MeasuredConf, Ranges, section
 from zrp_ga.io import measurements, records
 from zrp_ga.model import error_model, metrics
@@ -316,8 +315,6 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
             **({"parameter_half_widths": dict(zip(layout.names, half.tolist()))} if problem.layout is not layout else {})}  # fmt: skip
     sets = {"calibration": calib, **({"validation": val} if val is not None else {})}
     judge = Judge(problem.layout, nominal, validation, registration=c.validation_registration.value)
-    for w in warnings:
-        warn(w, log)
     return MeasuredTask(name, problem, judge, robot, info, warnings, setup, c.if_worse.value if c.if_worse else None,
                         registration=reg, sets=sets)  # fmt: skip
 

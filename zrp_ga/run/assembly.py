@@ -84,9 +84,13 @@ def start(p: Prepared, progress: bool, together: bool = False, hashed: dict[str,
 
 
 def diagnostics(p: Prepared, cache: Cache, sweep: Sweep | None) -> dict[str, Any]:
-    """The identifiability of the run's data (:func:`zrp_ga.run.summary.diagnostics`)."""
+    """The warnings of the run's problem (found while it was built) and the identifiability of
+    its data (:func:`zrp_ga.run.summary.diagnostics`); in a sweep, each once per problem instance."""
     from zrp_ga.run import summary
 
+    for w in getattr(p.task, "warnings", ()):  # what the problem found while it was built: before the work
+        if first_in_sweep(sweep, p.instance, w):
+            warn(w, log)
     return summary.diagnostics(p.task, p.state is None, p.instance, cache, _where(sweep))
 
 
@@ -99,9 +103,31 @@ def finish(p: Prepared, result: Result, figures: dict[str, Any], cache: Cache, s
     written["objective"] = summary.objective(p.cfg, p.task, written, p.instance, cache, _where(sweep))
     if p.out is not None:
         summary.write(p.out, p.task, result, written, x)
+    said = set(getattr(p.task, "warnings", ()))  # the problem's own were said at the start (diagnostics)
     for w in written["warnings"]:
-        warn(w, log)
+        if w not in said and first_in_sweep(sweep, p.instance, w):
+            warn(w + (" (said once in this sweep: every job's summary.json has its own)" if sweep else ""), log)
     return result, written
+
+
+def first_in_sweep(sweep: Sweep | None, instance: str, warning: str) -> bool:
+    """Whether to say ``warning`` on the console: always outside a sweep; in a sweep, when no
+    job said the same text before, nor a warning of its :func:`kind` on the same problem
+    ``instance`` (a marker in the sweep's folder, :func:`zrp_ga.run.directory.first_to_ask`:
+    every job process sees it)."""
+    if sweep is None:
+        return True
+    text = directory.first_to_ask(sweep.dir, f"warning {warning}")
+    of_kind = directory.first_to_ask(sweep.dir, f"warning {instance} {kind(warning)}")
+    return text and of_kind
+
+
+def kind(warning: str) -> str:
+    """A warning without its numbers: one sweep job's "3 gene(s) ... on their range bounds" is of
+    the kind of another's "5 gene(s) ..." (a sweep says each kind once per problem instance)."""
+    import re
+
+    return re.sub(r"[-+]?\d[\d.,]*(e[-+]?\d+)?", "#", warning)
 
 
 def _where(sweep: Sweep | None) -> Path | None:

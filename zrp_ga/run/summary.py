@@ -59,17 +59,26 @@ def model_rank(task: Task) -> int:
 
 def diagnostics(task: Task, first: bool, key: str, cache: Cache, sweep: Path | None = None) -> dict[str, Any]:
     """The identifiability of the calibration data, and a warning when it carries less than the
-    model could identify (once per sweep and problem instance; not again when resuming).
+    model could identify (one line, the directions in the log files; once per sweep for each
+    text; not again when resuming).
     ``key``: the problem instance's key; the figures are computed once per instance in this
     process (``cache``) and once per ``sweep``, which keeps them beside its manifest."""
     d = cache.diagnostics.get(key)
     if d is None:
         d = cache.diagnostics[key] = directory.shared(sweep, key, lambda: _compute(task), "diagnostics")
-    if d["rank"] < d["model_rank"] and first and directory.first_to_ask(sweep, task.name):
-        warn(f"the calibration poses identify {d['rank']} of the {d['model_rank']} parameter combinations the model can "
-             f"identify ({d['n_params']} parameters); more poses would help. Unidentifiable:\n  "
-             + "\n  ".join(d["unidentifiable"]), log)  # fmt: skip
+    if d["rank"] < d["model_rank"] and first and directory.first_to_ask(sweep, identifiability_line(d)):  # once a sweep
+        warn(identifiability_line(d), log, details=[f"unidentifiable: {u}" for u in d["unidentifiable"]])
     return d
+
+
+def identifiability_line(d: dict[str, Any]) -> str:
+    """The one console line of the identifiability warning (:func:`diagnostics`' figures
+    ``d``): what (the combinations the poses identify), how bad (how many stay at nominal),
+    what to do (more, or more varied, poses) and where the directions are listed."""
+    left = d["model_rank"] - d["rank"]
+    return (f"the calibration poses identify {d['rank']} of the {d['model_rank']} parameter combinations the model can "
+            f"identify ({d['n_params']} parameters): {left} stay at nominal; more (or more varied) poses would identify "
+            "them (the directions: summary.json's identifiability, and the log)")  # fmt: skip
 
 
 def _compute(task: Task) -> dict[str, Any]:
