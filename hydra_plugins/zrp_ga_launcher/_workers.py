@@ -455,12 +455,20 @@ class _Dispatcher:
         self.feed(self.pool.replace(w))
 
     def write_table(self) -> None:
+        """``manifest.csv``; one line when it cannot be written (a full disk: ``manifest.jsonl``
+        keeps the states, and the jobs that failed for it say why)."""
         self.table_at = time.monotonic()
         try:
             from zrp_ga.run import directory
         except ImportError:
             return
-        directory.write_table(self.sweep)
+        try:
+            directory.write_table(self.sweep)
+        except OSError as exc:
+            if getattr(self, "table_failed", False):
+                return
+            self.table_failed = True  # said once
+            log.warning(f"{exc.filename or self.sweep}: not written ({exc.strerror or exc}); manifest.jsonl holds the jobs' states")
 
 
 def _lost_job(launcher: Any, idx: int, overrides: list[str], error: Exception, state: str | None) -> JobReturn:

@@ -109,9 +109,28 @@ def status(out: Path) -> str | None:
 
 
 def write_status(out: Path, state: str, error: str | None = None) -> None:
+    """``out/status.json`` saying ``state`` (and the ``error``), written atomically; a run that
+    stops because its disk is full writes ``failed`` over the file in place, which needs no
+    new space (the file exists from the run's start, and the text fits in its first block)."""
     from zrp_ga.io import records
 
-    records.write_json(out / STATUS, {"status": state} if error is None else {"status": state, "error": error})
+    data = {"status": state} if error is None else {"status": state, "error": error}
+    try:
+        records.write_json(out / STATUS, data)
+    except OSError:
+        if state == "running" or not (out / STATUS).exists():
+            raise
+        _overwrite(out / STATUS, (json.dumps(data) + "\n").encode())
+
+
+def _overwrite(path: Path, data: bytes) -> None:
+    """Write ``data`` over the file ``path`` in place: no new file (and, up to the size of the
+    blocks it holds, no new space). ``data`` cut to 512 bytes, the error's text shortened."""
+    if len(data) > 512:
+        data = (json.dumps({"status": json.loads(data)["status"], "error": json.loads(data).get("error", "")[:300]}) + "\n").encode()
+    with open(path, "r+b") as f:
+        f.write(data)
+        f.truncate(len(data))
 
 
 def read_summary(out: Path) -> dict:
@@ -161,11 +180,16 @@ class Sweep:
 
 def _append(path: Path, record: dict) -> None:
     line = json.dumps(record) + "\n"
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
     try:
-        os.write(fd, line.encode())
-    finally:
-        os.close(fd)
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            os.write(fd, line.encode())
+        finally:
+            os.close(fd)
+    except OSError as exc:  # a full disk: the error names the manifest
+        from zrp_ga.core.fileio import named
+
+        raise named(exc, path) from None
 
 
 def record(sweep: Sweep, state: str, error: str | None = None) -> None:
@@ -213,11 +237,17 @@ def write_table(sweep: str | Path) -> None:
     if not (sweep / MANIFEST).exists():
         return
     tmp = sweep / f".manifest.{os.getpid()}.csv"
-    with open(tmp, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS)
-        writer.writeheader()
-        writer.writerows(job_states(sweep))
-    os.replace(tmp, sweep / TABLE)
+    try:
+        with open(tmp, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=COLUMNS)
+            writer.writeheader()
+            writer.writerows(job_states(sweep))
+        os.replace(tmp, sweep / TABLE)
+    except OSError as exc:  # a full disk: the old table stays, the error names the file
+        from zrp_ga.core.fileio import named
+
+        tmp.unlink(missing_ok=True)
+        raise named(exc, sweep / TABLE) from None
 
 
 def repair(sweep: str | Path) -> None:
