@@ -448,9 +448,15 @@ class _Dispatcher:
         finished (a batch's runs end before the batch); another worker takes its place."""
         w.process.join(1.0)
         code = w.process.exitcode
+        how = f"killed by {signal.Signals(-code).name}" if code is not None and code < 0 and -code in signal.valid_signals() else f"exit code {code}"
         states = _states(self.sweep)
-        for idx in [i for batch in w.batches for i in batch]:
-            error = RuntimeError(f"the worker process running this job died (exit code {code})")
+        lost = [i for batch in w.batches for i in batch]
+        for idx in lost:
+            others = [i for i in lost if i != idx]
+            with_them = f", with job{'s' * (len(others) > 1)} {', '.join(map(str, others))}" if others else ""
+            # one line on the console (an OSError's), naming the job; the same command runs it again
+            error = ChildProcessError(f"job {idx} ({' '.join(filter_overrides(self.overrides[idx]))}): the worker process running this job "
+                                      f"died ({how}){with_them}; its run is failed, run the same command again to continue it")  # fmt: skip
             self.returned(idx, _lost_job(self.launcher, idx, self.overrides[idx], error, states.get(idx)))
         self.feed(self.pool.replace(w))
 
@@ -494,7 +500,11 @@ def _lost_job(launcher: Any, idx: int, overrides: list[str], error: Exception, s
             return ret
         except (OSError, ValueError, TypeError):
             pass
-    directory.record(sweep, "failed", f"{type(error).__name__}: {error}")
+    text = f"{type(error).__name__}: {error}"
+    if directory.holds_run(out) and directory.status(out) in (None, "running"):  # its status as its run would have set it
+        with contextlib.suppress(Exception), directory.locked(out):  # the dead worker's lock is released
+            directory.write_status(out, "failed", text)
+    directory.record(sweep, "failed", text)
     return ret
 
 
