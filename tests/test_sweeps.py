@@ -211,6 +211,15 @@ def test_a_sweep_run_again_keeps_its_finished_jobs_and_refuses_another_config(tm
     assert again.returncode == 0, again.stderr[-2000:]
     assert {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")} == before  # kept, not run again
     assert (again.stdout + again.stderr).count("finished before; kept") == 4
+    manifest = (sweep / "manifest.jsonl").read_bytes()
+    other = _zrp_ga(*args[:-1], "population.generations=6", args[-1])  # another sweep: refused at its start
+    assert other.returncode == 2 and other.stderr.strip().splitlines() == [
+        f"zrp-ga: error: {sweep} holds another sweep (population.generations=6 here, population.generations=8 there); "
+        "run this one into another hydra.sweep.dir, or continue that one with its own command"], other.stderr  # fmt: skip
+    assert (sweep / "manifest.jsonl").read_bytes() == manifest
+    assert {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")} == before
+    # a sweep folder from before the record: each job refuses a run of another config, as it did
+    (sweep / directory.SHARED / directory.SWEEP_RECORD).unlink()
     other = _zrp_ga(*args[:-1], "population.generations=6", args[-1])
     assert other.returncode != 0
     m = read_manifest(sweep)

@@ -270,6 +270,82 @@ def repair(sweep: str | Path) -> None:
         tmp.unlink(missing_ok=True)
 
 
+SWEEP_RECORD = "sweep.json"  # in SHARED: what the sweep in this directory is (claim)
+
+
+def claim(sweep: Path, overrides: list[str], grid: Any = None) -> None:
+    """Make ``sweep`` the directory of the sweep of the command line's ``overrides`` (and the
+    config's own sweep ``grid``: ``hydra.sweeper.params``), or refuse, with a ConfigError naming
+    the folder and what differs, when it holds another sweep: one that ran jobs there, or whose
+    process still runs. The same sweep started again goes on (its jobs continue). A sweep folder
+    from before this record is taken as it is (each job still refuses a run of another config)."""
+    from zrp_ga.core.schema import ConfigError
+
+    path = sweep / SHARED / SWEEP_RECORD
+    path.parent.mkdir(parents=True, exist_ok=True)
+    mine = {"overrides": [o for o in overrides if not o.startswith(("progress=", "+progress="))], "grid": grid}
+    for _ in range(2):
+        try:
+            theirs = json.loads(path.read_text())
+        except FileNotFoundError:
+            theirs = None
+        except (OSError, ValueError):  # damaged: written again
+            theirs = dict(mine)
+        if theirs is None and _ran_jobs(sweep):  # a sweep folder from before this record: left as it was
+            return
+        if theirs is None:  # the first sweep here; two starting at once: one writes it, the other compares
+            try:
+                fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                continue
+            with os.fdopen(fd, "w") as f:
+                json.dump({**mine, "pid": os.getpid()}, f)
+            return
+        break
+    same = {k: theirs.get(k) for k in mine} == mine
+    if not same and (_ran_jobs(sweep) or _alive(theirs.get("pid"))):
+        raise ConfigError(f"{sweep} holds another sweep ({_sweep_difference(mine, theirs)}); run this one into another "
+                          "hydra.sweep.dir, or continue that one with its own command")  # fmt: skip
+    from zrp_ga.core.fileio import write_json
+
+    write_json(path, {**mine, "pid": os.getpid()})
+
+
+def _ran_jobs(sweep: Path) -> bool:
+    try:
+        return bool(_records(sweep))
+    except OSError:
+        return False
+
+
+def _alive(pid: Any) -> bool:
+    if not isinstance(pid, int) or pid == os.getpid():
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process
+        return True
+    return True
+
+
+def _sweep_difference(mine: dict, theirs: dict) -> str:
+    """What differs between two sweeps' records (:func:`claim`), said in a few words."""
+
+    def by_key(overrides: list) -> dict:
+        return dict(o.split("=", 1) if "=" in o else (o, "") for o in overrides or [])
+
+    a, b = by_key(mine["overrides"]), by_key(theirs.get("overrides") or [])
+    said = [f"{k}={a[k]} here, {k}={b[k]} there" if k in a and k in b else f"{k}={a[k]} here, not there" if k in a
+            else f"{k}={b[k]} there, not here" for k in [*a, *(k for k in b if k not in a)] if a.get(k) != b.get(k)]  # fmt: skip
+    if mine.get("grid") != theirs.get("grid"):
+        said.append("hydra.sweeper.params differ")
+    if not said:
+        said.append("the same settings in another order, which numbers the jobs otherwise")
+    return "; ".join(said[:4]) + ("; ..." if len(said) > 4 else "")
+
+
 def _hash(key: str, n: int) -> str:
     return hashlib.sha1(key.encode()).hexdigest()[:n]
 
