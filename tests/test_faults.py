@@ -10,6 +10,7 @@ tests/test_resume_checks.py.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import shutil
@@ -96,6 +97,53 @@ def tiny_disk(tmp_path):
         pytest.skip(f"cannot mount a tmpfs: {made.stderr.strip()}")
     yield disk
     subprocess.run(["umount", "-l", str(disk)], check=False)
+
+
+def _fill(disk: Path) -> None:
+    """Take every free byte of ``disk``."""
+    with open(disk / "filler", "wb", buffering=0) as f:
+        for size in (65536, 4096, 512, 1):
+            try:
+                while True:
+                    f.write(b"x" * size)
+            except OSError as exc:
+                assert exc.errno == errno.ENOSPC
+
+
+def test_on_a_full_disk_a_run_still_says_it_failed_and_the_writes_name_their_files(tiny_disk):
+    """Not a byte free: the status file is set ``failed`` in place, a failure's manifest line
+    that cannot be written does not hide the failure, and every write that fails names its
+    file and leaves no temporary file (the previous checkpoint kept)."""
+    import numpy as np
+
+    from zrp_ga.run import assembly, callbacks
+    from zrp_ga.run.directory import Sweep
+
+    run = tiny_disk / "run"
+    run.mkdir()
+    directory.write_status(run, "running")
+    checkpoint.save(run / directory.CHECKPOINT, {"gen": 1, "pop": np.arange(3.0)})
+    log = callbacks.ConvergenceLog(run / directory.CONVERGENCE)
+    log.on_start(None)
+    _fill(tiny_disk)
+    error = OSError(errno.ENOSPC, "No space left on device", str(run / directory.CONVERGENCE))
+    assembly.stopped(None, Sweep(tiny_disk, 0, ("seed=0",), "run"), error)  # the manifest cannot be appended: no error
+    directory.write_status(run, "failed", f"OSError: {error}")
+    assert json.loads((run / directory.STATUS).read_text()) == {"status": "failed", "error": f"OSError: {error}"}
+    with pytest.raises(OSError) as failed:
+        checkpoint.save(run / directory.CHECKPOINT, {"gen": 2, "pop": np.arange(3000.0)})
+    assert failed.value.filename == str(run / directory.CHECKPOINT)
+    assert int(checkpoint.load(run / directory.CHECKPOINT)["gen"]) == 1
+    with pytest.raises(OSError) as failed:
+        for gen in range(3000):
+            log.on_generation(None, {"gen": gen, "nevals": 10 * gen})
+    assert failed.value.filename == str(run / directory.CONVERGENCE)
+    with pytest.raises(OSError) as failed:
+        directory.write_table(tiny_disk)
+    with pytest.raises(OSError) as failed:
+        directory.record(Sweep(tiny_disk, 1, (), "1"), "running")
+    assert failed.value.filename == str(tiny_disk / directory.MANIFEST)
+    assert not list(tiny_disk.rglob(".*.tmp")) and not list(tiny_disk.glob(".manifest.*"))
 
 
 def _zrp_ga(*args: str) -> subprocess.CompletedProcess:
