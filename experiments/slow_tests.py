@@ -27,7 +27,7 @@ OUT = ROOT / "experiments" / "results" / "slow_tests.md"
 
 def main(extra: list[str]) -> int:
     command = [sys.executable, "-m", "pytest", "-m", "slow", "-q", "-rfEs", "-p", "no:cacheprovider", *extra]
-    started = datetime.datetime.now(datetime.timezone.utc)
+    started = datetime.datetime.now(datetime.UTC)
     load_before = os.getloadavg()
     t0 = time.monotonic()
     proc = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
