@@ -501,9 +501,7 @@ def _lost_job(launcher: Any, idx: int, overrides: list[str], error: Exception, s
         except (OSError, ValueError, TypeError):
             pass
     text = f"{type(error).__name__}: {error}"
-    if directory.holds_run(out) and directory.status(out) in (None, "running"):  # its status as its run would have set it
-        with contextlib.suppress(Exception), directory.locked(out):  # the dead worker's lock is released
-            directory.write_status(out, "failed", text)
+    directory.fail_lost(out, text)  # its status as its run would have set it
     directory.record(sweep, "failed", text)
     return ret
 

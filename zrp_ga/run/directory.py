@@ -123,6 +123,16 @@ def write_status(out: Path, state: str, error: str | None = None) -> None:
         _overwrite(out / STATUS, (json.dumps(data) + "\n").encode())
 
 
+def fail_lost(out: Path, error: str) -> None:
+    """The run in ``out`` whose process died (a killed worker or cluster job) set ``failed``,
+    as it would have set it, when it had started and not ended (and no other run holds it)."""
+    from zrp_ga.core.schema import ConfigError
+
+    if holds_run(out) and status(out) in (None, "running"):
+        with contextlib.suppress(OSError, ConfigError), locked(out):  # the dead process's lock is released
+            write_status(out, "failed", error)
+
+
 def _overwrite(path: Path, data: bytes) -> None:
     """Write ``data`` over the file ``path`` in place: no new file (and, up to the size of the
     blocks it holds, no new space). ``data`` cut to 512 bytes, the error's text shortened."""
