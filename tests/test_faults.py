@@ -213,3 +213,28 @@ def test_a_full_disk_under_a_single_run_ends_in_one_line(tiny_disk):
     _ends_in_one_line_naming_a_file(proc, out)
     assert len(proc.stderr.strip().splitlines()) <= 2, proc.stderr
     _nothing_lost(out)
+
+
+def test_a_run_whose_process_died_is_set_failed_unless_it_ended_or_is_held(tmp_path):
+    """What the launcher does for the runs of a dead worker or cluster job
+    (``directory.fail_lost``): ``running`` becomes ``failed`` with the error; a finished run,
+    a directory without a run and one whose lock another process holds are left alone."""
+    runs = {name: tmp_path / name for name in ("running", "done", "empty", "held")}
+    for name, run in runs.items():
+        run.mkdir()
+        if name != "empty":
+            directory.write_status(run, "done" if name == "done" else "running")
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from filelock import FileLock; "
+                               f"lock = FileLock({str(runs['held'] / directory.LOCK)!r}); lock.acquire(); print(1, flush=True); time.sleep(60)"],
+                              stdout=subprocess.PIPE, text=True, start_new_session=True)  # fmt: skip
+    try:
+        assert holder.stdout.readline().strip() == "1"
+        for run in runs.values():
+            directory.fail_lost(run, "ChildProcessError: the worker process running this job died (killed by SIGKILL)")
+    finally:
+        os.killpg(holder.pid, signal.SIGKILL)
+        holder.wait()
+    assert json.loads((runs["running"] / directory.STATUS).read_text()) == {
+        "status": "failed", "error": "ChildProcessError: the worker process running this job died (killed by SIGKILL)"}
+    assert directory.status(runs["done"]) == "done" and directory.status(runs["held"]) == "running"
+    assert not (runs["empty"] / directory.STATUS).exists()
