@@ -16,6 +16,7 @@ import datetime
 import os
 import platform
 import re
+import signal
 import subprocess
 import sys
 import time
@@ -30,7 +31,9 @@ def main(extra: list[str]) -> int:
     started = datetime.datetime.now(datetime.UTC)
     load_before = os.getloadavg()
     t0 = time.monotonic()
-    proc = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
+    # Ctrl-C as the tests send it: a shell's background job (``cmd &`` without job control, nohup,
+    # cron) inherits SIGINT ignored, and so would every sweep the tests interrupt with it
+    proc = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, preexec_fn=_default_sigint)
     wall = time.monotonic() - t0
     load_after = os.getloadavg()
     text = proc.stdout + proc.stderr
@@ -55,6 +58,10 @@ def main(extra: list[str]) -> int:
     OUT.write_text("\n".join(lines))
     print(f"written: {OUT.relative_to(ROOT)}")
     return proc.returncode
+
+
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _load(la: tuple[float, float, float]) -> str:

@@ -158,6 +158,11 @@ def _zrp_ga(*args: str) -> subprocess.CompletedProcess:
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 
+def _lines(err: str) -> list[str]:
+    """stderr's lines but numba's notice that it compiles again (a checkout at another path)."""
+    return [line for line in err.strip().splitlines() if not line.startswith("compiling the kernels")]
+
+
 def _ends_in_one_line_naming_a_file(proc: subprocess.CompletedProcess, disk: Path) -> str:
     err = proc.stderr
     assert proc.returncode == 2, err[-3000:]
@@ -192,7 +197,7 @@ def test_a_full_disk_under_the_lockstep_launcher_ends_in_one_line(tiny_disk):
             "hydra/launcher=zrp_ga", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={sweep}"]  # fmt: skip
     proc = _zrp_ga(*args)
     _ends_in_one_line_naming_a_file(proc, sweep)
-    assert len(proc.stderr.strip().splitlines()) <= 2, proc.stderr  # Hydra's "Error executing job with overrides" and ours
+    assert len(_lines(proc.stderr)) <= 2, proc.stderr  # Hydra's "Error executing job with overrides" and ours
     m = directory.read_manifest(sweep)
     assert list(m["status"]) == ["failed"] * 4 and m["error"].str.contains("No space left on device").all(), m
     for d in m["dir"]:
@@ -211,7 +216,7 @@ def test_a_full_disk_under_a_single_run_ends_in_one_line(tiny_disk):
     out = tiny_disk / "run"
     proc = _zrp_ga(*SMALL, "population.generations=2000", "checkpoint_every=2", "progress=false", f"hydra.run.dir={out}")
     _ends_in_one_line_naming_a_file(proc, out)
-    assert len(proc.stderr.strip().splitlines()) <= 2, proc.stderr
+    assert len(_lines(proc.stderr)) <= 2, proc.stderr
     _nothing_lost(out)
 
 
