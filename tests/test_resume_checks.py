@@ -78,8 +78,47 @@ def test_resume_refuses_a_checkpoint_config_the_schema_refuses(tmp_path, monkeyp
     state = checkpoint.load(out / directory.CHECKPOINT)
     state["config"]["checkpoint_every"] = "often"
     checkpoint.save(out / directory.CHECKPOINT, state)
+    with pytest.raises(ConfigError, match=r"checkpoint.npz: its config was edited since it was written \(checkpoint_every changed\)"):
+        execute.run(config.load([f"resume={out}"]), tmp_path / "ignored")
+    state.pop("config_digests")  # a checkpoint written before the digests: the schema's check
+    checkpoint.save(out / directory.CHECKPOINT, state)
     with pytest.raises(ConfigError, match=r"resume: the checkpoint's config is not valid at checkpoint_every"):
         execute.run(config.load([f"resume={out}"]), tmp_path / "ignored")
+
+
+@pytest.mark.parametrize("how", ["numpy", "checkpoint module"])
+def test_resume_refuses_a_checkpoint_whose_config_was_edited_naming_the_settings(tmp_path, monkeypatch, how):
+    """Settings that change the run edited in the checkpoint's config (the population, the
+    problem, the budget), as a user would with numpy or with zrp_ga's own reader and writer:
+    refused with one line naming them, nothing written; not resumed with the old population
+    under a summary of the new settings. The same checkpoint unedited resumes."""
+    cfg = config.load([*FAST, "population.generations=9", "checkpoint_every=2"])
+    out = _interrupted(cfg, tmp_path / "cut", monkeypatch)
+    path = out / directory.CHECKPOINT
+    original = path.read_bytes()
+    if how == "numpy":
+        import json
+
+        arrays = dict(np.load(path, allow_pickle=False))
+        text = json.loads(str(arrays["__json__"]))
+        text["config"]["population"]["mu"] += 10
+        text["config"]["population"]["generations"] = 20
+        arrays["__json__"] = np.array(json.dumps(text))
+        np.savez(path.with_suffix(""), **arrays)  # numpy adds .npz
+    else:
+        state = checkpoint.load(path)
+        state["config"]["population"]["mu"] += 10
+        state["config"]["population"]["generations"] = 20
+        checkpoint.save(path, state)
+    files = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    with pytest.raises(ConfigError) as refused:
+        execute.run(config.load([f"resume={out}"]), tmp_path / "ignored")
+    assert str(refused.value) == (f"{path}: its config was edited since it was written (population.mu, population.generations "
+                                  "changed); a run continues with the settings it started with: put them back, or start a new run")  # fmt: skip
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == files
+    path.write_bytes(original)
+    execute.run(config.load([f"resume={out}"]), tmp_path / "ignored")
+    assert _csv(out)["gen"].max() == 9 and directory.read_summary(out)["config"]["population"]["generations"] == 9
 
 
 def test_resume_applies_the_checkpoints_config(tmp_path, monkeypatch):

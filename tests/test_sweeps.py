@@ -17,6 +17,7 @@ import itertools
 import json
 import os
 import random
+import re
 import shutil
 import signal
 import subprocess
@@ -210,6 +211,15 @@ def test_a_sweep_run_again_keeps_its_finished_jobs_and_refuses_another_config(tm
     assert again.returncode == 0, again.stderr[-2000:]
     assert {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")} == before  # kept, not run again
     assert (again.stdout + again.stderr).count("finished before; kept") == 4
+    manifest = (sweep / "manifest.jsonl").read_bytes()
+    other = _zrp_ga(*args[:-1], "population.generations=6", args[-1])  # another sweep: refused at its start
+    assert other.returncode == 2 and other.stderr.strip().splitlines() == [
+        f"zrp-ga: error: {sweep} holds another sweep (population.generations=6 here, population.generations=8 there); "
+        "run this one into another hydra.sweep.dir, or continue that one with its own command"], other.stderr  # fmt: skip
+    assert (sweep / "manifest.jsonl").read_bytes() == manifest
+    assert {p: p.read_bytes() for p in sweep.glob("*/convergence.csv")} == before
+    # a sweep folder from before the record: each job refuses a run of another config, as it did
+    (sweep / directory.SHARED / directory.SWEEP_RECORD).unlink()
     other = _zrp_ga(*args[:-1], "population.generations=6", args[-1])
     assert other.returncode != 0
     m = read_manifest(sweep)
@@ -297,21 +307,34 @@ def test_sweeps_killed_at_random_moments_end_as_an_uninterrupted_one(tmp_path, u
 
 @pytest.mark.slow
 def test_a_worker_that_dies_fails_its_jobs_and_the_sweep_goes_on(tmp_path, uninterrupted):
-    """One worker process killed (as by the out-of-memory killer): its jobs are failed and
-    recorded, another worker runs the rest; the same command then completes the sweep."""
+    """One worker process killed mid-batch (as by the out-of-memory killer): its jobs are failed
+    and recorded (manifest and status files), another worker runs the rest, the sweep ends with
+    one line naming a lost job; the same command then completes the sweep."""
     sweep = tmp_path / "sweep"
     proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.cli", *KILLABLE, f"hydra.sweep.dir={sweep}"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)  # fmt: skip
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)  # fmt: skip
     deadline = time.time() + 120
     while time.time() < deadline and not any(p.stat().st_size > 2000 for p in sweep.glob("*/convergence.csv")):
         time.sleep(0.01)
     children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
     os.kill(int(children[0]), signal.SIGKILL)
-    assert proc.wait(timeout=300) != 0  # Hydra's sweeper reports the failed jobs
+    try:
+        _, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 2, err  # Hydra's sweeper reports the first failed job; the console script says it in one line
     m = read_manifest(sweep)
     failed = m[m["status"] == "failed"]
-    assert len(failed) >= 1 and failed["error"].str.contains("worker process running this job died").all()
+    assert len(failed) >= 1 and failed["error"].str.contains("worker process running this job died [(]killed by SIGKILL[)]").all()
     assert set(m["status"]) == {"done", "failed"} and len(m) == N_KILLABLE
+    last = err.strip().splitlines()[-1]
+    assert "Traceback" not in err and re.fullmatch(rf"zrp-ga: error: job ({'|'.join(map(str, failed['job']))}) [(]seed=.*[)]: "
+                                                    r"the worker process running this job died [(]killed by SIGKILL[)].*", last), err  # fmt: skip
+    assert len(err.strip().splitlines()) <= 2, err  # Hydra's "Error executing job with overrides: [...]" and that line
+    for d in failed["dir"]:  # its run's status file as the manifest says (the worker could not set it)
+        status = json.loads((sweep / str(d) / "status.json").read_text())
+        assert status["status"] == "failed" and "worker process running this job died" in status["error"], status
     again = _zrp_ga(*KILLABLE, f"hydra.sweep.dir={sweep}")
     assert again.returncode == 0, again.stderr[-3000:]
     _check_same_as(sweep, uninterrupted)

@@ -206,7 +206,8 @@ class _JobLog(logging.FileHandler):
         self.acquire()
         try:
             if self.stream is not None:
-                self.stream.close()
+                with contextlib.suppress(OSError):  # a full disk: the lines lost, the run's own error says where
+                    self.stream.close()
                 self.stream = None
                 self.mode = "a"
         finally:

@@ -121,7 +121,7 @@ class _Slurm:
             try:
                 yield k, job.result()
             except Exception as exc:
-                yield k, RuntimeError(f"cluster job {job.job_id} failed ({job.paths.stderr}): {_last_line(exc)}")
+                yield k, ChildProcessError(f"cluster job {job.job_id} failed ({job.paths.stderr}): {_last_line(exc)}")  # one line on the console
 
     def cancel(self) -> None:
         for job in self.jobs:
@@ -163,7 +163,7 @@ class _Ray:
                 try:
                     yield where[ref], self.ray.get(ref)
                 except Exception as exc:
-                    yield where[ref], RuntimeError(f"Ray task {where[ref]} failed: {_last_line(exc)}")
+                    yield where[ref], ChildProcessError(f"Ray task {where[ref]} failed: {_last_line(exc)}")
 
     def cancel(self) -> None:
         for ref in self.refs:
@@ -276,6 +276,7 @@ def _fail(sweep: Path, jobs: list[tuple[int, list[str], Any]], error: Exception,
                 continue
             except (OSError, ValueError, TypeError):
                 pass
+        directory.fail_lost(out, f"{type(error).__name__}: {error}")  # its status file as the manifest says
         directory.record(place, "failed", f"{type(error).__name__}: {error}")
 
 

@@ -448,19 +448,33 @@ class _Dispatcher:
         finished (a batch's runs end before the batch); another worker takes its place."""
         w.process.join(1.0)
         code = w.process.exitcode
+        how = f"killed by {signal.Signals(-code).name}" if code is not None and code < 0 and -code in signal.valid_signals() else f"exit code {code}"
         states = _states(self.sweep)
-        for idx in [i for batch in w.batches for i in batch]:
-            error = RuntimeError(f"the worker process running this job died (exit code {code})")
+        lost = [i for batch in w.batches for i in batch]
+        for idx in lost:
+            others = [i for i in lost if i != idx]
+            with_them = f", with job{'s' * (len(others) > 1)} {', '.join(map(str, others))}" if others else ""
+            # one line on the console (an OSError's), naming the job; the same command runs it again
+            error = ChildProcessError(f"job {idx} ({' '.join(filter_overrides(self.overrides[idx]))}): the worker process running this job "
+                                      f"died ({how}){with_them}; its run is failed, run the same command again to continue it")  # fmt: skip
             self.returned(idx, _lost_job(self.launcher, idx, self.overrides[idx], error, states.get(idx)))
         self.feed(self.pool.replace(w))
 
     def write_table(self) -> None:
+        """``manifest.csv``; one line when it cannot be written (a full disk: ``manifest.jsonl``
+        keeps the states, and the jobs that failed for it say why)."""
         self.table_at = time.monotonic()
         try:
             from zrp_ga.run import directory
         except ImportError:
             return
-        directory.write_table(self.sweep)
+        try:
+            directory.write_table(self.sweep)
+        except OSError as exc:
+            if getattr(self, "table_failed", False):
+                return
+            self.table_failed = True  # said once
+            log.warning(f"{exc.filename or self.sweep}: not written ({exc.strerror or exc}); manifest.jsonl holds the jobs' states")
 
 
 def _lost_job(launcher: Any, idx: int, overrides: list[str], error: Exception, state: str | None) -> JobReturn:
@@ -486,7 +500,9 @@ def _lost_job(launcher: Any, idx: int, overrides: list[str], error: Exception, s
             return ret
         except (OSError, ValueError, TypeError):
             pass
-    directory.record(sweep, "failed", f"{type(error).__name__}: {error}")
+    text = f"{type(error).__name__}: {error}"
+    directory.fail_lost(out, text)  # its status as its run would have set it
+    directory.record(sweep, "failed", text)
     return ret
 
 

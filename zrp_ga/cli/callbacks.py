@@ -19,7 +19,7 @@ from hydra.conf import HydraConf
 from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from hydra.types import RunMode
-from omegaconf import DictConfig, open_dict, read_write
+from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 from zrp_ga.run import directory
 
@@ -92,7 +92,14 @@ class Manifest(Callback):
             raise Refused(exc) from None
         except HydraException:  # a job that cannot be composed: the sweeper says which, as it checks them
             pass
-        directory.repair(Path(config.hydra.sweep.dir))
+        sweep = Path(config.hydra.sweep.dir)
+        grid = config.hydra.sweeper.get("params") if "params" in config.hydra.sweeper else None
+        grid = OmegaConf.to_container(grid, resolve=False) if isinstance(grid, DictConfig) else grid
+        try:  # one sweep per folder: another is refused here, before any job (the same one continues)
+            directory.claim(sweep, list(config.hydra.overrides.task), grid)
+        except (ValueError, OSError) as exc:
+            raise Refused(exc) from None
+        directory.repair(sweep)
 
     def on_job_end(self, config: DictConfig, job_return: Any, **kwargs: Any) -> None:
         hc = HydraConfig.get()

@@ -16,6 +16,7 @@ imported where they are used, so that ``--help`` starts fast.
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import signal
 import sys
@@ -85,6 +86,9 @@ def cli() -> None:
     full = os.environ.get("HYDRA_FULL_ERROR") == "1"
     os.environ["HYDRA_FULL_ERROR"] = "1"
     signal.signal(signal.SIGTERM, _stop)  # a job limit or shutdown: stop as at Ctrl-C, checkpoints saved
+    # A log file that cannot be written (a full disk) loses its line without the logging module's
+    # traceback on stderr: the run's own error names the file (and the console has the line).
+    logging.raiseExceptions = False
     _register_launcher()
     try:
         with _few_collections():

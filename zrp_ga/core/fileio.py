@@ -86,8 +86,18 @@ def write_json(path: str | Path, data: dict) -> None:
     text = json.dumps(_finite_or_none(json.loads(json.dumps(data, default=_plain))), indent=2)
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text + "\n")
-    replace(tmp, path)
+    try:
+        tmp.write_text(text + "\n")
+        replace(tmp, path)
+    except OSError as exc:  # a full disk: no temporary file left, and the error names the file
+        tmp.unlink(missing_ok=True)
+        raise named(exc, path) from None
+
+
+def named(exc: OSError, path: str | Path) -> OSError:
+    """``exc`` naming ``path`` when it names no file (a write's error names none: a full disk
+    said "No space left on device" without saying where)."""
+    return exc if exc.filename else type(exc)(exc.errno, exc.strerror or str(exc), str(path))
 
 
 def write_csv(path: str | Path, rows: Iterable[dict], columns: list[str] | None = None) -> None:

@@ -170,8 +170,11 @@ def stopped(p: Prepared | None, sweep: Sweep | None, exc: BaseException) -> None
 
 
 def record_stop(sweep: Sweep, exc: BaseException) -> None:
-    """A sweep job's manifest line for ``exc``: interrupted at Ctrl-C, else failed with its first line."""
-    if isinstance(exc, KeyboardInterrupt):
-        directory.record(sweep, "interrupted", INTERRUPTED)
-    else:
-        directory.record(sweep, "failed", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
+    """A sweep job's manifest line for ``exc``: interrupted at Ctrl-C, else failed with its
+    first line. A manifest that cannot be written (the disk ``exc`` says is full) is left: the
+    error ``exc`` raised goes on, and the run's status file says it."""
+    with contextlib.suppress(OSError):
+        if isinstance(exc, KeyboardInterrupt):
+            directory.record(sweep, "interrupted", INTERRUPTED)
+        else:
+            directory.record(sweep, "failed", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")

@@ -5,13 +5,14 @@ reads it)."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import functools
 import io
 import os
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any, TypeVar
 
@@ -20,6 +21,7 @@ from numpy.typing import NDArray
 
 from zrp_ga.algorithms import Algorithm, Callback, Result, Row, State
 from zrp_ga.core import compiled
+from zrp_ga.core.fileio import named
 from zrp_ga.model.metrics import Judge
 from zrp_ga.run import checkpoint
 
@@ -132,19 +134,24 @@ class ConvergenceLog(Callback):
         # The kept rows go to a new file that then replaces the old one: a kill meanwhile leaves
         # the old file whole (rewriting it in place would lose the rows a resumed run needs).
         tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-        with open(tmp, "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore", restval="")
-            writer.writeheader()
-            writer.writerows(kept)
-        os.replace(tmp, self.path)
+        try:
+            with open(tmp, "w", newline="") as f:
+                writer = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore", restval="")
+                writer.writeheader()
+                writer.writerows(kept)
+            os.replace(tmp, self.path)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise named(exc, self.path) from None
         self._file = open(self.path, "a", newline="")
         self._buffer = io.StringIO() if self.buffered else None
         self._writer = csv.DictWriter(self._buffer or self._file, fieldnames=COLUMNS, extrasaction="ignore", restval="")
 
     def on_generation(self, algorithm: Algorithm, row: Row) -> None:
         if self._buffer is None:
-            self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
-            self._file.flush()
+            with self._naming():
+                self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
+                self._file.flush()
         else:  # the same line csv writes for numbers (nothing to quote), joined directly
             self._buffer.write(",".join(_cell(row.get(k, "")) for k in COLUMNS) + "\r\n")
 
@@ -152,11 +159,23 @@ class ConvergenceLog(Callback):
         """Write the rows held in memory."""
         if self._file.closed:  # the run ended (an interrupt while its files were written)
             return
-        if self._buffer is not None and self._buffer.tell():
-            self._file.write(self._buffer.getvalue())  # whole rows in one write: a kill leaves no half row
-            self._buffer.seek(0)
-            self._buffer.truncate()
-        self._file.flush()
+        with self._naming():
+            if self._buffer is not None and self._buffer.tell():
+                self._file.write(self._buffer.getvalue())  # whole rows in one write: a kill leaves no half row
+                self._buffer.seek(0)
+                self._buffer.truncate()
+            self._file.flush()
+
+    @contextlib.contextmanager
+    def _naming(self) -> Iterator[None]:
+        """A write's error (a full disk) naming this file; the file is closed then (its rows
+        that did not fit are dropped, not written again by a later flush or at exit)."""
+        try:
+            yield
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                self._file.close()
+            raise named(exc, self.path) from None
 
     def on_interrupt(self, algorithm: Algorithm) -> None:
         self.flush()

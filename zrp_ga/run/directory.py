@@ -113,9 +113,38 @@ def status(out: Path) -> str | None:
 
 
 def write_status(out: Path, state: str, error: str | None = None) -> None:
+    """``out/status.json`` saying ``state`` (and the ``error``), written atomically; a run that
+    stops because its disk is full writes ``failed`` over the file in place, which needs no
+    new space (the file exists from the run's start, and the text fits in its first block)."""
     from zrp_ga.io import records
 
-    records.write_json(out / STATUS, {"status": state} if error is None else {"status": state, "error": error})
+    data = {"status": state} if error is None else {"status": state, "error": error}
+    try:
+        records.write_json(out / STATUS, data)
+    except OSError:
+        if state == "running" or not (out / STATUS).exists():
+            raise
+        _overwrite(out / STATUS, (json.dumps(data) + "\n").encode())
+
+
+def fail_lost(out: Path, error: str) -> None:
+    """The run in ``out`` whose process died (a killed worker or cluster job) set ``failed``,
+    as it would have set it, when it had started and not ended (and no other run holds it)."""
+    from zrp_ga.core.schema import ConfigError
+
+    if holds_run(out) and status(out) in (None, "running"):
+        with contextlib.suppress(OSError, ConfigError), locked(out):  # the dead process's lock is released
+            write_status(out, "failed", error)
+
+
+def _overwrite(path: Path, data: bytes) -> None:
+    """Write ``data`` over the file ``path`` in place: no new file (and, up to the size of the
+    blocks it holds, no new space). ``data`` cut to 512 bytes, the error's text shortened."""
+    if len(data) > 512:
+        data = (json.dumps({"status": json.loads(data)["status"], "error": json.loads(data).get("error", "")[:300]}) + "\n").encode()
+    with open(path, "r+b") as f:
+        f.write(data)
+        f.truncate(len(data))
 
 
 def read_summary(out: Path) -> dict[str, Any]:
@@ -166,11 +195,16 @@ class Sweep:
 
 def _append(path: Path, record: dict[str, Any]) -> None:
     line = json.dumps(record) + "\n"
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
     try:
-        os.write(fd, line.encode())
-    finally:
-        os.close(fd)
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            os.write(fd, line.encode())
+        finally:
+            os.close(fd)
+    except OSError as exc:  # a full disk: the error names the manifest
+        from zrp_ga.core.fileio import named
+
+        raise named(exc, path) from None
 
 
 def record(sweep: Sweep, state: str, error: str | None = None) -> None:
@@ -218,11 +252,17 @@ def write_table(sweep: str | Path) -> None:
     if not (sweep / MANIFEST).exists():
         return
     tmp = sweep / f".manifest.{os.getpid()}.csv"
-    with open(tmp, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS)
-        writer.writeheader()
-        writer.writerows(job_states(sweep))
-    os.replace(tmp, sweep / TABLE)
+    try:
+        with open(tmp, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=COLUMNS)
+            writer.writeheader()
+            writer.writerows(job_states(sweep))
+        os.replace(tmp, sweep / TABLE)
+    except OSError as exc:  # a full disk: the old table stays, the error names the file
+        from zrp_ga.core.fileio import named
+
+        tmp.unlink(missing_ok=True)
+        raise named(exc, sweep / TABLE) from None
 
 
 def repair(sweep: str | Path) -> None:
@@ -243,6 +283,82 @@ def repair(sweep: str | Path) -> None:
                 os.close(fd)
     for tmp in sweep.glob(".manifest.*.csv"):
         tmp.unlink(missing_ok=True)
+
+
+SWEEP_RECORD = "sweep.json"  # in SHARED: what the sweep in this directory is (claim)
+
+
+def claim(sweep: Path, overrides: list[str], grid: Any = None) -> None:
+    """Make ``sweep`` the directory of the sweep of the command line's ``overrides`` (and the
+    config's own sweep ``grid``: ``hydra.sweeper.params``), or refuse, with a ConfigError naming
+    the folder and what differs, when it holds another sweep: one that ran jobs there, or whose
+    process still runs. The same sweep started again goes on (its jobs continue). A sweep folder
+    from before this record is taken as it is (each job still refuses a run of another config)."""
+    from zrp_ga.core.schema import ConfigError
+
+    path = sweep / SHARED / SWEEP_RECORD
+    path.parent.mkdir(parents=True, exist_ok=True)
+    mine = {"overrides": [o for o in overrides if not o.startswith(("progress=", "+progress="))], "grid": grid}
+    for _ in range(2):
+        try:
+            theirs = json.loads(path.read_text())
+        except FileNotFoundError:
+            theirs = None
+        except (OSError, ValueError):  # damaged: written again
+            theirs = dict(mine)
+        if theirs is None and _ran_jobs(sweep):  # a sweep folder from before this record: left as it was
+            return
+        if theirs is None:  # the first sweep here; two starting at once: one writes it, the other compares
+            try:
+                fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                continue
+            with os.fdopen(fd, "w") as f:
+                json.dump({**mine, "pid": os.getpid()}, f)
+            return
+        break
+    same = {k: theirs.get(k) for k in mine} == mine
+    if not same and (_ran_jobs(sweep) or _alive(theirs.get("pid"))):
+        raise ConfigError(f"{sweep} holds another sweep ({_sweep_difference(mine, theirs)}); run this one into another "
+                          "hydra.sweep.dir, or continue that one with its own command")  # fmt: skip
+    from zrp_ga.core.fileio import write_json
+
+    write_json(path, {**mine, "pid": os.getpid()})
+
+
+def _ran_jobs(sweep: Path) -> bool:
+    try:
+        return bool(_records(sweep))
+    except OSError:
+        return False
+
+
+def _alive(pid: Any) -> bool:
+    if not isinstance(pid, int) or pid == os.getpid():
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process
+        return True
+    return True
+
+
+def _sweep_difference(mine: dict, theirs: dict) -> str:
+    """What differs between two sweeps' records (:func:`claim`), said in a few words."""
+
+    def by_key(overrides: list) -> dict:
+        return dict(o.split("=", 1) if "=" in o else (o, "") for o in overrides or [])
+
+    a, b = by_key(mine["overrides"]), by_key(theirs.get("overrides") or [])
+    said = [f"{k}={a[k]} here, {k}={b[k]} there" if k in a and k in b else f"{k}={a[k]} here, not there" if k in a
+            else f"{k}={b[k]} there, not here" for k in [*a, *(k for k in b if k not in a)] if a.get(k) != b.get(k)]  # fmt: skip
+    if mine.get("grid") != theirs.get("grid"):
+        said.append("hydra.sweeper.params differ")
+    if not said:
+        said.append("the same settings in another order, which numbers the jobs otherwise")
+    return "; ".join(said[:4]) + ("; ..." if len(said) > 4 else "")
 
 
 def _hash(key: str, n: int) -> str:

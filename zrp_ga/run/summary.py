@@ -281,7 +281,17 @@ def terms_summary(task: Task, x: np.ndarray) -> dict[str, Any]:
 
 
 def write(out: Path, task: Task, result: Result, summary: Summary, x: np.ndarray) -> None:
-    """The run's files after the optimisation; each warning also on the console."""
+    """The run's files after the optimisation; each warning also on the console. A write that
+    fails (a full disk) names the run's directory when its error names no file."""
+    from zrp_ga.core.fileio import named
+
+    try:
+        _write(out, task, result, summary, x)
+    except OSError as exc:
+        raise named(exc, out) from None
+
+
+def _write(out: Path, task: Task, result: Result, summary: Summary, x: np.ndarray) -> None:
     p = task.problem
     if isinstance(task, SelfJudging):
         params = task.params_table(x)
