@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.hydra_cli
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", ROOT / "experiments" / "README.md"]
 PROGRAMS = ("zrp-ga", "zrp-ga-report", "zrp-ga-compensate", "pip", "pytest", "python")

@@ -70,9 +70,7 @@ def study_size(storage: str | None, study_name: str | None) -> int:
         return 0
     import optuna
 
-    if study_name not in optuna.study.get_all_study_names(storage):
-        return 0
-    return len(optuna.load_study(study_name=study_name, storage=storage).get_trials(deepcopy=False))
+    return next((s.n_trials for s in optuna.study.get_all_study_summaries(storage) if s.study_name == study_name), 0)  # Optuna 2.10 - 5
 
 
 def _add(*values: Any) -> int:
