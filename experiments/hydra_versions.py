@@ -24,7 +24,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
-from test_readme_commands import all_commands  # noqa: E402
+from test_readme_commands import all_commands
 
 SMALL = ["hydra.sweeper.params.seed=0", "population.max_evals=1000", "population.generations=null", "progress=false"]
 SKIP = {

@@ -7,6 +7,7 @@ OmegaConf warning may be printed (hydra-core 1.4 warns of what 1.5 will refuse).
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -75,7 +76,6 @@ def test_a_tuning_study_continues_without_repeating_a_trial(tmp_path):
     ``zrp-ga-report`` names the best trial and the parameters' importance."""
     pytest.importorskip("hydra_plugins.hydra_optuna_sweeper", reason="the tune extra: pip install '.[tune]'")
     import optuna
-    import yaml
 
     tune = ["-m", "hparams_search=ga_optuna", "hydra.sweeper.n_trials=3", "population.max_evals=1000", "hydra.sweep.dir=tune"]
     for _ in range(2):
@@ -85,8 +85,8 @@ def test_a_tuning_study_continues_without_repeating_a_trial(tmp_path):
     trials = study.get_trials()
     assert [t.state.name for t in trials] == ["COMPLETE"] * 6
     assert len({tuple(sorted(t.params.items())) for t in trials}) == 6  # no trial proposed twice
-    seeds = [yaml.safe_load((sweep / str(k) / ".hydra" / "config.yaml").read_text())["seed"] for k in range(6)]
-    assert seeds == list(range(6))
+    seeds = [json.loads((sweep / str(k) / "summary.json").read_text())["seed"] for k in range(6)]
+    assert seeds == list(range(6))  # a folder and a seed per trial, numbered in the study
     report = subprocess.run([str(BIN / "zrp-ga-report"), str(sweep), "--out", str(tmp_path / "report")], capture_output=True, text=True)
     assert report.returncode == 0, report.stderr[-2000:]
     tuning = (tmp_path / "report" / "tuning.md").read_text()
