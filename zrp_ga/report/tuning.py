@@ -50,25 +50,27 @@ def study_lines(storage: Path) -> list[str]:
         best = study.best_trial
         lines += [f"Best trial: number {best.number}, value {_number(best.value)}.", "", "| setting | best value | importance |",
                   "| --- | --- | --- |"]  # fmt: skip
-        importance = _importance(study)
+        found = _importance(study)
+        importance = found if isinstance(found, dict) else {}
         for key in sorted(best.params, key=lambda k: -importance.get(k, -1.0)):
             share = importance.get(key)
             lines.append(f"| {key} | {_number(best.params[key])} | {'' if share is None else f'{share:.2f}'} |")
-        if not importance:
-            lines += ["", "Importance: not computed (it needs at least two complete trials that differ)."]
+        if isinstance(found, str):
+            lines += ["", f"Importance: {found.rstrip('.')}."]
         else:
             lines += ["", "Importance: Optuna's fANOVA evaluator (shares of the objective's variance, summing to 1)."]
         lines.append("")
     return lines
 
 
-def _importance(study: Any) -> dict[str, float]:
+def _importance(study: Any) -> dict[str, float] | str:
+    """The parameters' importance (fANOVA), or why there is none."""
     import optuna
 
     try:
         found = optuna.importance.get_param_importances(study, evaluator=optuna.importance.FanovaImportanceEvaluator(seed=0))
-    except (RuntimeError, ValueError, ZeroDivisionError):
-        return {}
+    except Exception as exc:  # too few trials; Optuna 2.10's fANOVA fails with numpy 2
+        return f"not computed: Optuna {optuna.__version__}'s fANOVA evaluator says {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
     return {k: float(v) for k, v in found.items() if math.isfinite(v)}
 
 
