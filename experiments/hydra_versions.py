@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import os
 import shlex
+import signal
 import subprocess
 import sys
 import tempfile
@@ -67,17 +68,23 @@ def main() -> None:
     work = Path(tempfile.mkdtemp(prefix="hydra_versions-"))
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
     versions = ", ".join(f"{p} {metadata.version(p)}" for p in ("zrp_ga", "hydra-core", "omegaconf", "hydra-optuna-sweeper", "optuna"))
-    # a run stopped early, for the README's resume command
-    subprocess.run(["zrp-ga", "problem=multipose", "population.generations=20000", "checkpoint_every=5", "progress=false",
-                    "hydra.run.dir=cut"], cwd=work, env=env, capture_output=True, timeout=15)  # fmt: skip
+    # a run stopped early (SIGTERM, as a cluster's time limit stops it), for the README's resume command
+    proc = subprocess.Popen(["zrp-ga", "problem=multipose", "population.generations=20000", "checkpoint_every=5", "progress=false",
+                             "hydra.run.dir=cut"], cwd=work, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    curve, deadline = work / "cut" / "convergence.csv", time.monotonic() + 600
+    while proc.poll() is None and time.monotonic() < deadline and not (curve.exists() and curve.read_text().count("\n") > 20):
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGTERM)
+    proc.wait()
     lines = [f"# The README's commands under {versions}", "",
              f"`python experiments/hydra_versions.py` on {time.strftime('%Y-%m-%d')}, load average "
              f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores. Each command as the documents write it (`pip` lines and "
              "`python experiments/...` scripts left out: they install or run a study of their own), sweeps made small by the "
              "overrides beside them; the output abridged.", ""]  # fmt: skip
-    for command in all_commands():
-        if command.split(" ")[0] not in ("zrp-ga", "zrp-ga-report", "zrp-ga-compensate") or "&&" in command:
-            continue
+    commands = [c for c in all_commands() if c.split(" ")[0] in ("zrp-ga", "zrp-ga-report", "zrp-ga-compensate") and "&&" not in c]
+    # the sweeps, tuning, resume and reports first (the paths a version change breaks), single runs after
+    commands.sort(key=lambda c: 0 if (" -m " in c or "resume=" in c) else 1 if c.startswith("zrp-ga-") else 2)
+    for command in commands:
         why = _skip(command)
         if why:
             lines += [f"## `{command}`", "", f"Not run: {why}.", ""]
@@ -93,11 +100,10 @@ def main() -> None:
         lines += [f"## `{command}`", "", f"Run{' with ' + repr(added) if added else ''}: exit {code}, {wall:.0f} s.", "", "```",
                   _abridged(text), "```", ""]  # fmt: skip
         print(f"{code} {wall:6.0f} s  {command}", flush=True)
-    text = "\n".join(lines)
-    if args.out:
-        Path(args.out).write_text(text)
-    else:
-        print(text)
+        if args.out:  # as it goes
+            Path(args.out).write_text("\n".join(lines))
+    if not args.out:
+        print("\n".join(lines))
 
 
 if __name__ == "__main__":
