@@ -203,3 +203,11 @@ def test_sentences_of_one_run_and_of_one_configuration_read_whole(tmp_path):
         t = report.build_tables(report.find_runs([tmp_path / where])[0])
         said = _all_sentences(t)
         assert not any(BROKEN.search(s) for s in said), said
+
+
+@pytest.mark.parametrize("within, verb", [(1, "comes"), (2, "come")])
+def test_the_reference_sentence_agrees_its_verb_with_the_count(within, verb):
+    first, rest = conclusions.reference_sentence({**ANSWER, "runs": 3, "all_runs": 9, "within": within, "evals": 12.0,
+                                                  "all_within_11": within})  # fmt: skip
+    assert f"; {within} of its 3 runs {verb} within 1% of LM's cost" in first, first
+    assert rest.startswith(f"Of the 9 runs of every configuration but the references, {within} {verb} within 1.1 x"), rest

@@ -103,7 +103,7 @@ def reference_sentence(a: dict | None) -> list[str]:
                  f"where LM takes {num(a['lm_evals'], ',.0f')} (median over the instances)" if math.isfinite(a.get("lm_evals", math.nan))
                  else f"; none of its runs comes within {pct(a['tol'])} of LM's cost")  # fmt: skip
     else:
-        often = (f"; {a['within']} of its {count(a['runs'], 'run')} come within {pct(a['tol'])} of LM's cost, in a median of "
+        often = (f"; {a['within']} of its {count(a['runs'], 'run')} {'comes' if a['within'] == 1 else 'come'} within {pct(a['tol'])} of LM's cost, in a median of "
                  f"{num(a['evals'], ',.0f')} evaluations against {lm_evals}")  # fmt: skip
     verdict = {stats.WORSE: "worse than LM", stats.BETTER: "better than LM", stats.EQUIVALENT: "equivalent to LM",
                stats.UNDECIDED: "undecided against LM"}.get(a.get("verdict"), "")  # fmt: skip
@@ -113,7 +113,7 @@ def reference_sentence(a: dict | None) -> list[str]:
     if rest <= 0 or a.get("round_off"):
         return [first]
     return [first, f"Of the {count(a['all_runs'], 'run')} of every configuration but the references, {a['all_within_11'] or 'none'} "
-                   f"come within 1.1 x LM's cost (the closest: {num(a['closest'])} x)."]  # fmt: skip
+                   f"{'comes' if a['all_within_11'] == 1 else 'come'} within 1.1 x LM's cost (the closest: {num(a['closest'])} x)."]  # fmt: skip
 
 
 def _decided_by(a: dict) -> tuple[str, ...]:
