@@ -47,7 +47,7 @@ def _prepared(command: str) -> tuple[list[str], str]:
     words = shlex.split(command)
     added: list[str] = []
     if words[0] == "zrp-ga" and ("-m" in words or "--multirun" in words):
-        added = [*SMALL]
+        added = [*SMALL] if any(w.startswith("experiment=") for w in words) else SMALL[1:]  # one seed: an experiment's
         if any(w.startswith("hparams_search=") for w in words):
             added = ["hydra.sweeper.n_trials=2", "population.max_evals=1000", "progress=false"]
     words = [str(ROOT / w) if w.startswith("zrp_ga/data/") else w for w in words]  # the package's data, from here
@@ -64,6 +64,7 @@ def _abridged(text: str, n: int = 4) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--out", default=None)
+    parser.add_argument("--only", default=None, help="run the commands holding this text again, their sections replaced in --out")
     args = parser.parse_args()
     work = Path(tempfile.mkdtemp(prefix="hydra_versions-"))
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
@@ -84,6 +85,8 @@ def main() -> None:
     commands = [c for c in all_commands() if c.split(" ")[0] in ("zrp-ga", "zrp-ga-report", "zrp-ga-compensate") and "&&" not in c]
     # the sweeps, tuning, resume and reports first (the paths a version change breaks), single runs after
     commands.sort(key=lambda c: 0 if (" -m " in c or "resume=" in c) else 1 if c.startswith("zrp-ga-") else 2)
+    if args.only:
+        commands = [c for c in commands if args.only in c]
     for command in commands:
         why = _skip(command)
         if why:
@@ -100,8 +103,20 @@ def main() -> None:
         lines += [f"## `{command}`", "", f"Run{' with ' + repr(added) if added else ''}: exit {code}, {wall:.0f} s.", "", "```",
                   _abridged(text), "```", ""]  # fmt: skip
         print(f"{code} {wall:6.0f} s  {command}", flush=True)
-        if args.out:  # as it goes
+        if args.out and not args.only:  # as it goes
             Path(args.out).write_text("\n".join(lines))
+    if args.out and args.only:  # the sections of these commands replaced
+        text = Path(args.out).read_text()
+        for section in "\n".join(lines).split("\n## ")[1:]:
+            parts = text.split("\n## ")
+            heads = [q.split("\n", 1)[0] for q in parts]
+            head = section.split("\n", 1)[0]
+            if head in heads:
+                parts[heads.index(head)] = section
+                text = "\n## ".join(parts)
+            else:
+                text += "\n## " + section
+        Path(args.out).write_text(text)
     if not args.out:
         print("\n".join(lines))
 
