@@ -47,8 +47,9 @@ def test_help_lists_the_groups_and_quoted_examples(tmp_path):
     assert "crossover: blend" in out.stdout and "zrp-ga -m crossover=blend,sbx 'seed=range(5)'" in out.stdout
 
 
-SMALL_GRID = ["population.max_evals=100", "hydra.sweeper.params.crossover=blend,sbx", "hydra.sweeper.params.mutation=gaussian",
-              "hydra.sweeper.params.inversion=none", "hydra.sweeper.params.rotation=none", "hydra.sweeper.params.seed=range(2)"]  # fmt: skip
+# the sweeper's params as quoted strings (a comma or range() unquoted would be a sweep over Hydra's own config)
+SMALL_GRID = ["population.max_evals=100", "hydra.sweeper.params.crossover='blend,sbx'", "hydra.sweeper.params.mutation=gaussian",
+              "hydra.sweeper.params.inversion=none", "hydra.sweeper.params.rotation=none", "hydra.sweeper.params.seed='range(2)'"]  # fmt: skip
 
 
 def test_an_experiment_sweeps_with_m_on_zrp_gas_launcher(tmp_path):
