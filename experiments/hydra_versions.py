@@ -70,7 +70,7 @@ def main() -> None:
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
     versions = ", ".join(f"{p} {metadata.version(p)}" for p in ("zrp_ga", "hydra-core", "omegaconf", "hydra-optuna-sweeper", "optuna"))
     # a run stopped early (SIGTERM, as a cluster's time limit stops it), for the README's resume command
-    proc = subprocess.Popen(["zrp-ga", "problem=multipose", "population.generations=20000", "checkpoint_every=5", "progress=false",
+    proc = subprocess.Popen(["zrp-ga", "problem=multipose", "population.generations=2000", "checkpoint_every=5", "progress=false",
                              "hydra.run.dir=cut"], cwd=work, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
     curve, deadline = work / "cut" / "convergence.csv", time.monotonic() + 600
     while proc.poll() is None and time.monotonic() < deadline and not (curve.exists() and curve.read_text().count("\n") > 20):
