@@ -65,18 +65,21 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--out", default=None)
     parser.add_argument("--only", default=None, help="run the commands holding this text again, their sections replaced in --out")
+    parser.add_argument("--work", default=None, help="the scratch folder (default: a new one; an earlier one: its sweeps reported)")
     args = parser.parse_args()
-    work = Path(tempfile.mkdtemp(prefix="hydra_versions-"))
+    work = Path(args.work) if args.work else Path(tempfile.mkdtemp(prefix="hydra_versions-"))
+    print(f"scratch folder: {work}", flush=True)
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
     versions = ", ".join(f"{p} {metadata.version(p)}" for p in ("zrp_ga", "hydra-core", "omegaconf", "hydra-optuna-sweeper", "optuna"))
     # a run stopped early (SIGTERM, as a cluster's time limit stops it), for the README's resume command
-    proc = subprocess.Popen(["zrp-ga", "problem=multipose", "population.generations=2000", "checkpoint_every=5", "progress=false",
+    proc = None if (work / "cut").exists() else subprocess.Popen(["zrp-ga", "problem=multipose", "population.generations=2000", "checkpoint_every=5", "progress=false",
                              "hydra.run.dir=cut"], cwd=work, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
     curve, deadline = work / "cut" / "convergence.csv", time.monotonic() + 600
-    while proc.poll() is None and time.monotonic() < deadline and not (curve.exists() and curve.read_text().count("\n") > 20):
+    while proc and proc.poll() is None and time.monotonic() < deadline and not (curve.exists() and curve.read_text().count("\n") > 20):
         time.sleep(0.2)
-    proc.send_signal(signal.SIGTERM)
-    proc.wait()
+    if proc:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait()
     lines = [f"# The README's commands under {versions}", "",
              f"`python experiments/hydra_versions.py` on {time.strftime('%Y-%m-%d')}, load average "
              f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores. Each command as the documents write it (`pip` lines and "
