@@ -30,6 +30,9 @@ from zrp_ga import config
 from zrp_ga.core.errors import one_line
 
 
+config.launcher_stored()  # conf/config.yaml's default launcher, also where main() is called without cli()
+
+
 @hydra.main(config_path="pkg://zrp_ga.conf", config_name="config", **config.hydra_options(),
             **({"execution_whitelist": config.TRUSTED_TARGETS} if config.hydra_14() else {}))  # fmt: skip
 def main(cfg: DictConfig) -> float:
