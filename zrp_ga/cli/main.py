@@ -29,7 +29,6 @@ from omegaconf import DictConfig
 from zrp_ga import config
 from zrp_ga.core.errors import one_line
 
-
 config.launcher_stored()  # conf/config.yaml's default launcher, also where main() is called without cli()
 
 
