@@ -35,6 +35,7 @@ SKIP = {
     "--config-dir DIR": "needs the user's own config folder (tests/test_app.py::test_a_users_own_config_directory runs one)",
     "calibration_file=...": "a placeholder for the user's files",
     "program.csv": "needs the user's own robot program (the UR10 command below runs compensation)",
+    "zrp-ga-report DIR": "a placeholder for the user's folders (the report commands of the sweeps run)",
 }
 
 
