@@ -1,23 +1,27 @@
 #!/usr/bin/env bash
-# CI: zrp-ga under the newest pre-release of hydra-core (1.4 today), in a venv of its own: --help,
-# --cfg job, a default run, a short sweep with each launcher (zrp_ga's, joblib), a sweep killed and
-# continued by the same command, a run interrupted and resumed. A few minutes.
+# CI: zrp-ga under the newest pre-release of hydra-core (1.4 today), in a venv of its own: the tests
+# marked hydra_cli (every command of the README and --help parsed; --version, --help, an experiment
+# with -m, a tuning study continued, resume, the report), then --help, --cfg job, a default run, a
+# short sweep with each launcher (zrp_ga's, joblib), a sweep killed and continued by the same
+# command, a run interrupted and resumed. A few minutes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 venv=.venv-hydra-pre
+fail() { echo "smoke: $*" >&2; exit 1; }
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 rm -rf "$venv"
 python3 -m venv "$venv"
 . "$venv/bin/activate"
 python -m pip install --upgrade pip >/dev/null
-pip install ".[joblib]" >/dev/null
+pip install ".[test,joblib,tune]" >/dev/null
 # hydra-core's newest release within the pin, pre-releases included (and what it needs of them:
-# OmegaConf's); every other package as a user gets it.
-pip install --pre --upgrade "hydra-core<1.5" >/dev/null
-echo "smoke: hydra-core $(python -c 'import hydra; print(hydra.__version__)')"
+# OmegaConf's, Optuna's sweeper's); every other package as a user gets it.
+pip install --pre --upgrade "hydra-core<1.5" "hydra-optuna-sweeper<1.5" >/dev/null
+echo "smoke: hydra-core $(python -c 'import hydra; print(hydra.__version__)'), omegaconf $(python -c 'import omegaconf; print(omegaconf.__version__)')"
+# the installed package (not the source tree: --import-mode=importlib puts no folder on the path)
+pytest -q -m hydra_cli -p no:cacheprovider tests || fail "the hydra_cli tests failed under the pre-release"
 cd "$work"
-fail() { echo "smoke: $*" >&2; exit 1; }
 # Hydra's deprecation and policy warnings on stderr would mean zrp_ga uses something on its way out.
 quiet() { ! grep -E "Warning|Traceback" "$1" >&2 || fail "$2 printed warnings (above)"; }
 

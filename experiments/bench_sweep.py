@@ -6,7 +6,7 @@ its results stay the same.
 
 One command, on this machine's cores, writing results/bench_sweep.md:
 
-- **The 144-run operator grid** (``zrp-ga experiment=operator_grid hydra/launcher=local``: 4
+- **The 144-run operator grid** (``zrp-ga -m experiment=operator_grid hydra/launcher=local``: 4
   crossovers x 3 mutations x 2 inversions x 2 rotations x 3 seeds of the 30-pose problem at 5,000
   evaluations): wall time, CPU time of all its processes (medians of ``--repeats``, with the
   range; the load average before and after), and its ratio to the **kernel-only time** of the
@@ -402,7 +402,7 @@ def report(raw: dict) -> str:
         f"Command: `{cmd}`, on {n} cores (Python {sys.version.split()[0]}). Machine load average "
         f"(1, 5, 15 min) before: {raw['load_before']}; after: {raw['load_after']}. Medians of {args.repeats} "
         "rounds, range in brackets.", "",
-        "## The 144-run operator grid (`zrp-ga experiment=operator_grid`)", "",
+        "## The 144-run operator grid (`zrp-ga -m experiment=operator_grid`)", "",
         "| code | launcher | wall, s | CPU, s (all processes) | the runs' compute, s (sum of wall_s) | CPU per run, s |",
         "|---|---|---|---|---|---|",
     ]  # fmt: skip
@@ -459,7 +459,7 @@ def report(raw: dict) -> str:
     same, total, named = a["compared"]
     verdict = f"**{same} of {total} runs identical**" + ("." if same == total else ". First differences:")
     lines += ["", "## Identical curves: every run of the grid against the same run alone", "",
-              "`zrp-ga experiment=operator_grid hydra/launcher=local hydra.launcher.lockstep=false` (every job "
+              "`zrp-ga -m experiment=operator_grid hydra/launcher=local hydra.launcher.lockstep=false` (every job "
               f"evolved alone): {a['wall_s']:.1f} s wall, {a['cpu_s']:.1f} s CPU, {a['done']} of {a['runs']} jobs "
               "done. Each run's convergence.csv without its timing columns (`zrp_ga.run.callbacks.WALL_CLOCK_COLUMNS`) "
               "and its summary.json without `wall_s` and `versions`, against the same job of the first timed sweep "
@@ -468,7 +468,7 @@ def report(raw: dict) -> str:
     big = raw.get("big")
     if big:
         lines += ["", f"## A {big['runs']:,}-run study (the grid with {args.big_seeds} seeds, zrp_ga's launcher)", "",
-                  f"`zrp-ga experiment=operator_grid hydra/launcher=local seed=range({args.big_seeds})`: "
+                  f"`zrp-ga -m experiment=operator_grid hydra/launcher=local seed=range({args.big_seeds})`: "
                   f"**{big['wall_s']:.1f} s wall** ({big['wall_s'] / 60:.1f} min; {big['wall_s'] / big['runs'] * 1000:.1f} s per "
                   f"1,000 runs), {big['cpu_s']:.1f} s CPU ({big['cpu_s'] / big['runs'] * 1000:.0f} ms per run); "
                   f"{big['done']:,} of {big['runs']:,} manifest jobs done; {big['pose_evals'] / 1e6:,.0f} M pose evaluations. "

@@ -10,8 +10,8 @@ run's calibration over all candidates (the poses it could have used: series B fo
 ``--random`` more random subsets per arm and k, whose indices and validation errors say which
 index predicts the validation error (20 random runs per k are too few for that):
 
-    zrp-ga experiment=pose_selection_study hydra/launcher=joblib
-    zrp-ga experiment=pose_selection_random hydra/launcher=joblib
+    zrp-ga -m experiment=pose_selection_study hydra/launcher=joblib
+    zrp-ga -m experiment=pose_selection_random hydra/launcher=joblib
     python experiments/pose_selection.py [--runs multirun/pose_selection] [--out DIR] [--random 100]
 """
 
@@ -206,8 +206,8 @@ def main() -> None:
                                   param_err=r["param_err"], nominal_val_rms_mm=r["nominal_val_rms_mm"], O1_cost=1.0 / r["indices"]["O1"])
                              for a, r in refs.items()])  # fmt: skip
     text = ["# Pose selection: validation error against k", "",
-            "Commands: `zrp-ga experiment=pose_selection_study hydra/launcher=joblib`, "
-            f"`zrp-ga experiment=pose_selection_random hydra/launcher=joblib`, `python experiments/pose_selection.py --random {args.random}`.",
+            "Commands: `zrp-ga -m experiment=pose_selection_study hydra/launcher=joblib`, "
+            f"`zrp-ga -m experiment=pose_selection_random hydra/launcher=joblib`, `python experiments/pose_selection.py --random {args.random}`.",
             "Errors in mm; `candidates_rms_mm`: the calibration's RMS error over all candidates (for the UR10: series B).", "",
             "## Calibration on all candidates", "", markdown(ref_rows),
             "## Per arm, k and method", "", markdown(summary),

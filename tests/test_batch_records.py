@@ -65,17 +65,17 @@ def hydra_loader():
         yield GlobalHydra.instance().hydra.config_loader
 
 
-def test_containers_are_omegaconfs(hydra_loader):
+def test_containers_with_enum_names_are_omegaconfs(hydra_loader):
+    """``_names`` of a container against OmegaConf's own ``enum_to_str=True``: enum keys and
+    values (the odd config's, Hydra's ``RunMode``) as their names, nothing else changed."""
     from hydra.types import RunMode
 
     master = hydra_loader.load_configuration("config", ["hydra.mode=MULTIRUN"], RunMode.MULTIRUN)
     configs = [hydra_loader.load_sweep_config(master, o) for o in (["seed=1", "crossover=sbx"], ["algorithm=lm"], ["instance=ur10_30poses"])]
-    for node in [*configs, _odd(), ListConfig([1, {"a": None}, "${x}"]), OmegaConf.create({"n": None})]:
-        ours = _batch._container(node)
+    for node in [*configs, *(c.hydra for c in configs), _odd(), ListConfig([1, {"a": None}, "${x}"]), OmegaConf.create({"n": None})]:
+        ours = _batch._names(OmegaConf.to_container(node, resolve=False))
         assert ours == OmegaConf.to_container(node, resolve=False, enum_to_str=True)
         assert repr(ours) == repr(OmegaConf.to_container(node, resolve=False, enum_to_str=True))  # the same types (1 is no True)
-    for cfg in configs:
-        assert _batch._container(cfg.hydra) == OmegaConf.to_container(cfg.hydra, resolve=False, enum_to_str=True)
 
 
 def test_the_task_config_is_a_copy_without_hydra(hydra_loader):
@@ -162,7 +162,7 @@ def test_values_read_from_the_container_are_resolved_as_omegaconf_resolves_them(
     cfg = OmegaConf.create({"hydra": {"job": {"num": 3, "env_set": {"A": "${x}/a", "B": "b"}, "plain": {"C": "c"}},
                                       "sweep": {"dir": "/d", "subdir": "${hydra.job.num}", "missing": "???"},
                                       "task": ["x=1", "${x}"]}, "x": "y"})  # fmt: skip
-    raw = _batch._container(cfg)
+    raw = OmegaConf.to_container(cfg, resolve=False, enum_to_str=True)
     for path in ("hydra.job.env_set", "hydra.job.plain", "hydra.sweep.dir", "hydra.sweep.subdir", "hydra.task", "hydra.sweep.missing"):
         node = raw
         for k in path.split("."):
@@ -192,8 +192,8 @@ class Typed:
 
 
 def test_interpolations_read_from_the_values_they_name_are_omegaconfs():
-    """``_interpolated`` against OmegaConf's resolution of the same string in a string node and
-    an untyped one: the strings it resolves itself (naming numbers, strings, booleans) and
+    """``_interpolated`` (from the config's unresolved container) against OmegaConf's resolution
+    of the same string in an untyped node, and in a string node (``str()`` of it): the strings it resolves itself (naming numbers, strings, booleans) and
     those it leaves to OmegaConf (enums, None, missing, interpolated values, resolvers, relative
     keys, escapes, quotes)."""
     own = ["${i}", "${f}", "${b}", "${s}", "${path}", "${path}/${s}.log", "${i}${f}", "a${i}b", "${sub.k}", "${sub.k}-${i}"]
@@ -203,10 +203,10 @@ def test_interpolations_read_from_the_values_they_name_are_omegaconfs():
         cfg = OmegaConf.structured(Typed)
         with open_dict(cfg):
             cfg.sub = {"k": "v"}
-        for field_name in ("to_s", "to_a"):
-            cfg[field_name] = text
-            ours = _batch._interpolated(text, cfg, cfg._get_node(field_name))
-            assert (ours is _batch._UNKNOWN) == (text in others), (text, field_name)
-            if ours is not _batch._UNKNOWN:
+        ours = _batch._interpolated(text, OmegaConf.to_container(cfg, resolve=False))
+        assert (ours is _batch._UNKNOWN) == (text in others), text
+        if ours is not _batch._UNKNOWN:
+            for field_name, as_node in (("to_s", str), ("to_a", lambda v: v)):  # a string node: str() of it
+                cfg[field_name] = text
                 theirs = cfg[field_name]
-                assert ours == theirs and type(ours) is type(theirs), (text, field_name)
+                assert as_node(ours) == theirs and type(as_node(ours)) is type(theirs), (text, field_name)

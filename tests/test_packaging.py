@@ -1,4 +1,5 @@
 import os
+import re
 import tomllib
 from pathlib import Path
 
@@ -31,13 +32,69 @@ def test_compiled_code_is_never_cached_inside_the_package(monkeypatch):
         assert list(compiled.cache_dir().rglob("_kernels.forward_kernel-*.nbi"))  # cached where the module says
 
 
+# Private attributes of Hydra's and OmegaConf's objects (and the rest of Hydra's private API):
+# a node's internals (_get_node, _value(), _content, _metadata, _parent, _get_parent), an
+# object's __dict__, hydra._internal, Hydra's singletons' fields, and a method of their classes
+# replaced. Matched in the text, whatever the object: zrp_ga and the launcher have no private
+# attributes of these names of their own.
+PRIVATE_HYDRA = re.compile(
+    r"hydra\._internal|_internal import|\b_get_node\b|\._value\(|__dict__|\b_content\b|\b_metadata\b|\b_(get_|set_)?parent\b"
+    r"|\._instances\b|\._return_value\b"
+    r"|\b(Hydra|ConfigLoaderImpl|Singleton|JobReturn|Plugins|OmegaConf|DictConfig|ListConfig|HydraConfig)\.\w+\s*=[^=]")  # fmt: skip
+
+
+def private_hydra_accesses(roots: list[Path]) -> list[str]:
+    """Each line of the Python files under ``roots`` reaching into Hydra's or OmegaConf's
+    private API (``PRIVATE_HYDRA``), as ``path:line: text``."""
+    files: list[Path] = []
+    for root in roots:
+        files += [root] if root.is_file() else sorted(root.rglob("*.py"))
+    return [f"{p}:{k}: {line.strip()}" for p in files for k, line in enumerate(p.read_text().splitlines(), 1)
+            if PRIVATE_HYDRA.search(line)]  # fmt: skip
+
+
 def test_hydra_only_through_its_public_interfaces():
     """No import from hydra._internal, no private field read or written, no method of Hydra's
     (or OmegaConf's) classes replaced: what broke every command under hydra-core 1.4."""
-    import re
-
-    private = re.compile(r"hydra\._internal|_internal import|\._content\b|\._instances\b|\._return_value\b|_set_parent\("
-                         r"|\b(Hydra|ConfigLoaderImpl|Singleton|JobReturn|Plugins|OmegaConf|DictConfig)\.\w+\s*=[^=]")  # fmt: skip
-    found = [f"{p.relative_to(ROOT)}:{k}: {line.strip()}" for d in ("zrp_ga", "hydra_plugins") for p in (ROOT / d).rglob("*.py")
-             for k, line in enumerate(p.read_text().splitlines(), 1) if private.search(line)]  # fmt: skip
+    found = private_hydra_accesses([ROOT / "zrp_ga", ROOT / "hydra_plugins"])
     assert not found, "\n".join(found)
+
+
+PLANTED = [
+    "node = cfg._get_node('a')",
+    "value = node._value()",
+    "cfg.__dict__['_content'] = {}",
+    "content = vars(cfg)['_content']",
+    "ref = cfg._metadata.ref_type",
+    "root = node._parent",
+    "root = node._get_parent()",
+    "node._set_parent(None)",
+    "from hydra._internal.hydra import Hydra",
+    "from hydra._internal import utils",
+    "import hydra._internal.utils",
+    "Singleton._instances.clear()",
+    "ret._return_value = 1",
+    "OmegaConf.to_yaml = lambda c: ''",
+    "HydraConfig.get = staticmethod(lambda: None)",
+]
+PUBLIC = [
+    "OmegaConf.select(cfg, 'a.b', default=None)",
+    "OmegaConf.update(cfg, 'a', 1, merge=True)",
+    "with open_dict(cfg), read_write(cfg): del cfg['hydra']",
+    "parents = [p.parent for p in paths]",
+    "kept_parents = best(P)",
+    "metadata = read_metadata(run)",
+    "content = path.read_text()",
+    "if OmegaConf.is_interpolation(cfg, 'x'): pass",
+    "value = job.value()",
+    "OmegaConf.to_yaml(cfg) == text",
+]
+
+
+def test_the_guard_finds_each_planted_private_access_and_no_public_call(tmp_path):
+    """The guard of the test above on planted lines, each in a file of its own: each private
+    access found, each public call left alone."""
+    for k, line in enumerate(PLANTED + PUBLIC):
+        (tmp_path / f"m{k}.py").write_text(f"x = 1\n{line}\n")
+    found = {Path(f.split(":")[0]).name for f in private_hydra_accesses([tmp_path])}
+    assert found == {f"m{k}.py" for k in range(len(PLANTED))}

@@ -566,6 +566,7 @@ class Recorder:
 
 jobs = [sys.argv[3:] + o for o in (["crossover=sbx"], ["crossover=blend"], ["algorithm.elite=999"])]
 base = sys.argv[3:] + ["hydra.mode=MULTIRUN"]
+config.launcher_stored()  # the default launcher's settings, as Hydra's plugin discovery stores them (hydra-core 1.3 misses an editable install)
 with initialize_config_module("zrp_ga.conf", **config.hydra_options()):
     loader = GlobalHydra.instance().hydra.config_loader
     ours, theirs = (loader.load_configuration("config", base + [f"hydra.sweep.dir={d}"], RunMode.MULTIRUN) for d in sys.argv[1:3])

@@ -48,14 +48,81 @@ def _register() -> None:
 _register()
 
 
+# --- resolvers of the tuning configs (conf/hparams_search) -----------------------------------------
+def _sqlite(path: str) -> str:
+    """``${zrp_ga.sqlite:PATH}``: the URL of an SQLite database at ``PATH`` (an Optuna storage), its
+    folder made (Optuna opens the database before the sweep's folder exists)."""
+    from pathlib import Path
+
+    where = Path(path).expanduser().absolute()
+    where.parent.mkdir(parents=True, exist_ok=True)
+    return f"sqlite:///{where.as_posix()}"
+
+
+def study_size(storage: str | None, study_name: str | None) -> int:
+    """``${zrp_ga.study_size:STORAGE,STUDY}``: the trials the Optuna study holds (0 without a
+    storage, or before the study's first run). Cached per config (and copied from the sweep's
+    config to its jobs', as Hydra copies its resolvers' cache): the study's size when the sweep
+    started, the first trial number of this run of it. The tuning configs number their jobs'
+    folders and seeds from it, so that a run continuing a study neither reuses a folder nor
+    repeats its sampler's proposals (its sampler's seed)."""
+    if not storage or not study_name:
+        return 0
+    import optuna
+
+    return next((s.n_trials for s in optuna.study.get_all_study_summaries(storage) if s.study_name == study_name), 0)  # Optuna 2.10 - 5
+
+
+def _add(*values: Any) -> int:
+    """``${zrp_ga.add:A,B}``: the sum of integers."""
+    return sum(int(v) for v in values)
+
+
+def _register_resolvers() -> None:
+    """The resolvers, through OmegaConf's ``register_resolver`` where it takes ``use_cache``
+    (OmegaConf 2.4.1, which deprecates ``register_new_resolver``), else ``register_new_resolver``
+    (2.3, whose ``register_resolver`` is the legacy one)."""
+    import inspect
+
+    register = OmegaConf.register_resolver if "use_cache" in inspect.signature(OmegaConf.register_resolver).parameters else OmegaConf.register_new_resolver
+    register("zrp_ga.sqlite", _sqlite, replace=True)
+    register("zrp_ga.study_size", study_size, use_cache=True, replace=True)
+    register("zrp_ga.add", _add, replace=True)
+
+
+_register_resolvers()
+
+
 def compose(overrides: list[str] | tuple[str, ...] = (), return_hydra_config: bool = False) -> DictConfig:
     """The config Hydra composes for ``overrides``, as ``zrp-ga`` would see it (with its ``hydra``
     node if ``return_hydra_config``)."""
     from hydra import compose as hydra_compose
     from hydra import initialize_config_module
 
+    launcher_stored()
     with initialize_config_module("zrp_ga.conf", **hydra_options()):
         return hydra_compose("config", overrides=list(overrides), return_hydra_config=return_hydra_config)
+
+
+def launcher_stored() -> None:
+    """zrp_ga's launcher's settings (``hydra/launcher=zrp_ga``, which ``conf/config.yaml``'s default
+    launcher extends) in Hydra's ConfigStore, as Hydra's plugin discovery stores them when it
+    imports the plugin: hydra-core 1.3 does not find it in an editable install (``pip install
+    -e``), whose import hook its scan of the ``hydra_plugins`` package cannot list. Imported by
+    name (the plugin is above this module's layer, as Hydra's discovery imports it)."""
+    import importlib
+
+    from hydra.core.config_store import ConfigStore
+
+    try:
+        stored = "zrp_ga.yaml" in ConfigStore.instance().list("hydra/launcher")
+    except OSError:  # no launcher stored yet
+        stored = False
+    if not stored:
+        try:
+            importlib.import_module("hydra_plugins.zrp_ga_launcher.config")
+        except ImportError:  # the plugin not installed: Hydra names the missing option
+            pass
 
 
 def load(overrides: list[str] | tuple[str, ...] = ()) -> schema.Config:

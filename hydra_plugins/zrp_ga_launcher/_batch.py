@@ -14,15 +14,16 @@ handlers whose settings differ from job to job (the log file, named after the jo
 directory) are one per job, attached while that job's work runs (``around`` of
 ``sweep_batch``) and open only while it writes.
 
-What a job costs besides its run is kept small: its config's containers and the plain
-interpolations of its directory and log file's name are read from the nodes themselves (not
-through OmegaConf's checked accessors and its parser), the records' texts from kept texts, and
-the garbage collector is kept off the objects from before the batch (``python
-tests/launcher_overhead.py``: 7 CPU-ms a job on the operator grid, from 23).
+What a job costs besides its run is kept small: its config is read once as a container
+(``OmegaConf.to_container``), the plain interpolations of its directory and log file's name
+are resolved from that container (not through OmegaConf's parser), the records' texts from kept
+texts, and the garbage collector is kept off the objects from before the batch (``python
+tests/launcher_overhead.py``).
 
 Callable in any process that got the pickled configs and ``hydra_context`` (a worker of this
 launcher, or a cluster's job): :func:`run_batch`. A task function other than ``zrp_ga.cli.main.main``
-runs its jobs one at a time through Hydra's ``run_job``. Hydra's public interfaces only.
+runs its jobs one at a time through Hydra's ``run_job``. Hydra's and OmegaConf's public
+interfaces only (tests/test_packaging.py).
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ import yaml
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.utils import JobReturn, JobRuntime, JobStatus, configure_log, env_override, run_job, setup_globals
 from hydra.types import HydraContext, TaskFunction
-from omegaconf import AnyNode, DictConfig, ListConfig, OmegaConf, StringNode, open_dict, read_write
+from omegaconf import DictConfig, ListConfig, OmegaConf, open_dict, read_write
 
 log = logging.getLogger(__name__)
 
@@ -256,16 +257,17 @@ def _interpolations(raw: Any, path: tuple = ()) -> Iterator[tuple]:
         yield path
 
 
-def _resolve(node: DictConfig, like: dict, paths: list[tuple], raw: dict, config: DictConfig) -> dict:
-    """``OmegaConf.to_container(node, resolve=True)`` of a ``node`` of ``config`` whose text
-    (unresolved) is ``raw``, that of the resolved ``like``'s node, and whose interpolations are
-    at ``paths``: ``like`` with those resolved in ``node``."""
+def _resolve(node: DictConfig, like: dict, paths: list[tuple], raw: dict, whole: dict) -> dict:
+    """``OmegaConf.to_container(node, resolve=True)`` of a ``node`` of a config whose text
+    (unresolved) is ``raw`` (the config's own: ``whole``), that of the resolved ``like``'s node,
+    whose interpolations are at ``paths`` and whose values are untyped (``hydra.job_logging``):
+    ``like`` with those resolved in ``node``."""
     out = _copy(like)
     for path in paths:
         text = raw
         for k in path:
             text = text[k]
-        value = _interpolated(text, config, _node_at(node, path))
+        value = _interpolated(text, whole)
         if value is _UNKNOWN:
             value = node
             for k in path:
@@ -279,38 +281,34 @@ def _resolve(node: DictConfig, like: dict, paths: list[tuple], raw: dict, config
     return out
 
 
-def _node_at(node: Any, path: tuple) -> Any:
-    for k in path:
-        node = node._get_node(k)
-    return node
-
-
 _UNKNOWN = object()
 _NODE_INTERPOLATION = re.compile(r"\$\{([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*)\}")
 
 
-def _interpolated(text: Any, config: DictConfig, node: Any) -> Any:
-    """The value of the string ``text`` of ``config``'s ``node`` (a string or any type's) as
-    OmegaConf resolves it, when all its interpolations name values of ``config`` by their keys
+def _interpolated(text: Any, whole: dict) -> Any:
+    """The value of the string ``text`` as OmegaConf resolves it in an untyped node (``Any``) of
+    a config whose unresolved container (``OmegaConf.to_container(cfg, resolve=False)``) is
+    ``whole``, when all its interpolations name values of the config by their keys
     (``${hydra.job.num}``, ``${hydra.runtime.output_dir}/${hydra.job.name}.log``) that are
     numbers or strings without interpolations: from those values (OmegaConf parses each such
-    string, ~0.3 ms); else ``_UNKNOWN``."""
-    if not isinstance(text, str) or not isinstance(node, (AnyNode, StringNode)):
+    string, ~0.3 ms); else ``_UNKNOWN``. In a string node (``str``) the value is ``str()`` of it."""
+    if not isinstance(text, str):
         return _UNKNOWN
     parts = _NODE_INTERPOLATION.split(text)
     if len(parts) == 1 or any(c in t for t in parts[0::2] for c in "${}\\'\""):
         return _UNKNOWN  # no interpolation, or one of another kind
     values = []
     for key in parts[1::2]:
-        try:
-            value = _node_at(config, tuple(key.split(".")))._value()
-        except Exception:  # no such key: OmegaConf says so
-            return _UNKNOWN
+        value: Any = whole
+        for k in key.split("."):
+            if not isinstance(value, dict) or k not in value:
+                return _UNKNOWN  # no such key (or inside an interpolation): OmegaConf says what it is
+            value = value[k]
         if type(value) not in (str, int, float, bool) or (isinstance(value, str) and ("${" in value or value == "???")):
             return _UNKNOWN
         values.append(value)
-    if parts[0::2] == ["", ""]:  # the value itself, as the node takes it
-        return str(values[0]) if isinstance(node, StringNode) else values[0]
+    if parts[0::2] == ["", ""]:  # the value itself
+        return values[0]
     out = [parts[0]]
     for value, after in zip(values, parts[2::2]):
         out += [str(value), after]
@@ -340,18 +338,14 @@ def _sweep_job_args(job: _Job) -> tuple[Path, Any, dict]:
     return Path(hydra["runtime"]["output_dir"]), sweep, dict(choices)
 
 
-def _container(node: Any) -> Any:
-    """``OmegaConf.to_container(node, resolve=False, enum_to_str=True)`` of a config node, read
-    from the nodes' own contents (what ``to_container`` reads through its checked accessors,
-    several times slower)."""
-    content = node._value()
-    if isinstance(node, DictConfig):
-        if not isinstance(content, dict):  # None, missing ("???") or an interpolation
-            return content
-        return {(k.name if isinstance(k, Enum) else k): _container(v) for k, v in content.items()}
-    if isinstance(node, ListConfig):
-        return [_container(v) for v in content] if isinstance(content, list) else content
-    return content.name if isinstance(content, Enum) else content
+def _names(container: Any) -> Any:
+    """``container`` (``OmegaConf.to_container(cfg)``) with its enums, keys and values, as their
+    names: ``OmegaConf.to_container(cfg, enum_to_str=True)`` without reading the config again."""
+    if isinstance(container, dict):
+        return {(k.name if isinstance(k, Enum) else k): _names(v) for k, v in container.items()}
+    if isinstance(container, list):
+        return [_names(v) for v in container]
+    return container.name if isinstance(container, Enum) else container
 
 
 def _resolved(config: DictConfig, raw: Any, path: str) -> Any:
@@ -369,15 +363,13 @@ def _resolved(config: DictConfig, raw: Any, path: str) -> Any:
 
 
 def _without_hydra(config: DictConfig) -> DictConfig:
-    """A copy of ``config`` without its ``hydra`` node (Hydra's ``run_job`` deep-copies the
-    config and deletes it): the config pickled without it, unpickled."""
-    content = config.__dict__["_content"]
-    config.__dict__["_content"] = {k: v for k, v in content.items() if k != "hydra"}
-    try:
-        data = pickle.dumps(config)
-    finally:
-        config.__dict__["_content"] = content
-    return pickle.loads(data)
+    """A copy of ``config`` without its ``hydra`` node, as Hydra's ``run_job`` makes the task's
+    config (a deep copy, ``hydra`` deleted): a copy (pickled and unpickled, faster than
+    ``copy.deepcopy``), ``hydra`` deleted."""
+    task_cfg: DictConfig = pickle.loads(pickle.dumps(config))
+    with read_write(task_cfg), open_dict(task_cfg):
+        del task_cfg["hydra"]
+    return task_cfg
 
 
 # --- the batch -----------------------------------------------------------------------------------------
@@ -391,7 +383,8 @@ class _Job:
         self.logs: list[_JobLog] = []
         self.error: Exception | None = None
         self.chdir, self.env = False, {}
-        self.hydra: dict = {}  # its hydra node, as a container (unresolved)
+        self.raw: dict = {}  # its config as a container (unresolved, enums as they are)
+        self.hydra: dict = {}  # its hydra node, as a container (unresolved, enums as names)
         self.sweep_dir, self.subdir = "", ""  # hydra.sweep's, resolved
 
     def prepare(self) -> None:
@@ -401,12 +394,14 @@ class _Job:
         (as ``HydraConfig.set_config`` leaves it)."""
         config = self.config
         _number(config, self.idx)
-        whole = _container(config)
+        self.raw = OmegaConf.to_container(config, resolve=False)  # type: ignore[assignment]  # enums as they are
+        whole = _names(self.raw)  # as the records have them
         self.hydra = hydra = whole.pop("hydra")  # its hydra node, unresolved; the rest is the task's
         self.sweep_dir, self.subdir = (self._text(hydra["sweep"][key], f"hydra.sweep.{key}") for key in ("dir", "subdir"))
         output_dir = os.path.join(self.sweep_dir, self.subdir)
         with read_write(config.hydra.runtime), open_dict(config.hydra.runtime):
-            config.hydra.runtime.output_dir = hydra["runtime"]["output_dir"] = os.path.abspath(output_dir)
+            config.hydra.runtime.output_dir = hydra["runtime"]["output_dir"] = self.raw["hydra"]["runtime"]["output_dir"] = (
+                os.path.abspath(output_dir))
         OmegaConf.set_readonly(config.hydra, True)
         self.out = Path(output_dir)
         task_cfg = _without_hydra(config)
@@ -426,7 +421,7 @@ class _Job:
 
     def _text(self, raw: Any, path: str) -> str:
         """The string of the value at ``path`` (unresolved: ``raw``), resolved."""
-        value = _interpolated(raw, self.config, _node_at(self.config, tuple(path.split("."))))
+        value = _interpolated(raw, self.raw)
         return str(value if value is not _UNKNOWN else _resolved(self.config, raw, path))
 
     @contextlib.contextmanager
@@ -505,7 +500,7 @@ class _Batch:
         paths = list(_interpolations(raw))
         for job in ready[1:]:
             with job.around():
-                confs.append(_resolve(job.config.hydra.job_logging, confs[0], paths, raw, job.config) if job.hydra["job_logging"] == raw
+                confs.append(_resolve(job.config.hydra.job_logging, confs[0], paths, raw, job.raw) if job.hydra["job_logging"] == raw
                              else OmegaConf.to_container(job.config.hydra.job_logging, resolve=True))  # fmt: skip
         root = logging.getLogger()
         handlers = {h.name: h for h in root.handlers if h.name}

@@ -130,9 +130,10 @@ class ComposingLoader(ConfigLoader):
         return self.loader.compute_defaults_list(*args, **kwargs)
 
     def __getattr__(self, name: str) -> Any:  # what later Hydra releases add to the interface
-        if "loader" not in self.__dict__:  # not set up yet (copy, unpickling): as any missing attribute
+        loader = vars(self).get("loader")  # None: not set up yet (copy, unpickling), as any missing attribute
+        if loader is None:
             raise AttributeError(name)
-        return getattr(self.__dict__["loader"], name)
+        return getattr(loader, name)
 
     def _hydra(self, master: DictConfig, lines: list[str], options: dict[str, str]) -> tuple[DictConfig, _Composed]:
         hydra_lines = list(master.hydra.overrides.hydra)

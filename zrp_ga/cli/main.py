@@ -30,6 +30,8 @@ from omegaconf import DictConfig
 from zrp_ga import config
 from zrp_ga.core.errors import one_line
 
+config.launcher_stored()  # conf/config.yaml's default launcher, also where main() is called without cli()
+
 
 @hydra.main(config_path="pkg://zrp_ga.conf", config_name="config", **config.hydra_options(),
             **({"execution_whitelist": config.TRUSTED_TARGETS} if config.hydra_14() else {}))  # fmt: skip
@@ -83,6 +85,9 @@ def cli() -> None:
 
     from zrp_ga.cli.callbacks import Refused
 
+    if "--version" in sys.argv[1:]:  # zrp_ga's (Hydra's own flag would print hydra-core's only)
+        print(version())
+        return
     full = os.environ.get("HYDRA_FULL_ERROR") == "1"
     os.environ["HYDRA_FULL_ERROR"] = "1"
     signal.signal(signal.SIGTERM, _stop)  # a job limit or shutdown: stop as at Ctrl-C, checkpoints saved
@@ -96,11 +101,29 @@ def cli() -> None:
     except (HydraException, OmegaConfBaseException, ValueError, OSError, MemoryError, Refused) as exc:
         if full:
             raise
-        print(f"zrp-ga: error: {one_line(getattr(exc, 'error', exc))}", file=sys.stderr)
+        print(f"zrp-ga: error: {_hint(one_line(getattr(exc, 'error', exc)))}", file=sys.stderr)
         sys.exit(2)
     except KeyboardInterrupt:
         print(f"\nzrp-ga: interrupted; {_continue_with()}", file=sys.stderr)
         sys.exit(130)
+
+
+def _hint(message: str) -> str:
+    """``message``, with what to do where zrp_ga knows better than Hydra's words: a sweep's config
+    (``experiment=operator_grid``, ``hparams_search=...``: they set ``hydra.mode: MULTIRUN``) run
+    without ``-m`` under hydra-core 1.4, which takes the mode from the command line or the primary
+    config only."""
+    if "hydra.mode changed during config composition" in message:
+        return (f"{message} (a sweep's config, such as experiment=operator_grid or hparams_search=ga_optuna, "
+                "runs with -m: zrp-ga -m experiment=...)")  # fmt: skip
+    return message
+
+
+def version() -> str:
+    """``zrp-ga --version``: zrp_ga's version, and the Hydra and OmegaConf it runs on."""
+    from importlib import metadata
+
+    return " ".join(f"{name} {metadata.version(name)}" for name in ("zrp_ga", "hydra-core", "omegaconf"))
 
 
 @contextlib.contextmanager

@@ -5,6 +5,7 @@ matplotlib are imported, so that a mistyped path is reported at once."""
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import NoReturn
 
 from zrp_ga.report.common import LEVELS, ROUND_OFF, ReportError
@@ -63,6 +64,11 @@ def main(argv: list[str] | None = None) -> None:
     except ReportError as exc:
         p.exit(2, f"zrp-ga-report: error: {exc}\n")
     print(console(t))
+    from zrp_ga.report import tuning
+
+    found = tuning.write(args.dirs, Path(args.out) if args.out else Path(args.dirs[0]) / "report")
+    if found is not None:
+        print(f"tuning studies (best settings, importance): {found}")
 
 
 if __name__ == "__main__":
