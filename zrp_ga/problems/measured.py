@@ -33,6 +33,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from zrp_ga.core.errors import warn
 from zrp_ga.core.schema import Format, MeasuredConf, Ranges, section
 from zrp_ga.io import measurements, records
 from zrp_ga.model import error_model, metrics
