@@ -200,7 +200,7 @@ def _out(out: Any) -> Path:
 
     path = files.writable_dir(out, "calibrate(): out")
     if directory.holds_run(path):
-        raise ValueError(f"calibrate(): out: {path} already holds a run; choose another directory")
+        raise ConfigError(f"calibrate(): out: output directory {path} already holds a run; choose another directory")
     return path
 
 
