@@ -166,7 +166,7 @@ def test_a_sweep_of_its_configs_params_names_the_largest_job(tmp_path):
             for mu in (100, 200)}  # fmt: skip
     assert need[100] < need[200]
     env = {"ZRP_GA_MEMORY": str(int((need[100] + need[200]) / 2))}
-    line = _one_line(_zrp_ga("experiment=population_sweep", f"hydra.sweep.dir={tmp_path}/s", cwd=tmp_path, env=env))
+    line = _one_line(_zrp_ga("-m", "experiment=population_sweep", f"hydra.sweep.dir={tmp_path}/s", cwd=tmp_path, env=env))
     assert "population: the sweep's largest job (population.mu=200) would need about" in line
     assert not (tmp_path / "s").exists()
 

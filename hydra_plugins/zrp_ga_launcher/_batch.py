@@ -88,7 +88,19 @@ def _numbered(config: DictConfig, idx: int) -> DictConfig:
 
 
 # --- the .hydra records --------------------------------------------------------------------------------
-class _Dumper(yaml.Dumper):
+def _omegaconfs_base_dumper() -> type:
+    """The PyYAML dumper ``OmegaConf.to_yaml`` writes with: libyaml's (``yaml.CDumper``) from
+    OmegaConf 2.4 on where PyYAML has it, the Python one before. The two fold a long string at
+    different places; the one whose text of a long string is OmegaConf's is taken."""
+    probe = {"text": "a long text, " * 20 + "folded"}
+    text = OmegaConf.to_yaml(probe)
+    for base in (getattr(yaml, "CDumper", None), yaml.Dumper):
+        if base is not None and yaml.dump(probe, Dumper=base, default_flow_style=False, allow_unicode=True, sort_keys=False) == text:
+            return base
+    return yaml.Dumper
+
+
+class _Dumper(_omegaconfs_base_dumper()):  # type: ignore[misc]  # a base found at run time
     """OmegaConf's YAML dumper (``OmegaConf.to_yaml``): strings that would read back as
     another type quoted."""
 
