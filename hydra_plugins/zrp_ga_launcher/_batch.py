@@ -90,9 +90,10 @@ def _numbered(config: DictConfig, idx: int) -> DictConfig:
 # --- the .hydra records --------------------------------------------------------------------------------
 def _omegaconfs_base_dumper() -> type:
     """The PyYAML dumper ``OmegaConf.to_yaml`` writes with: libyaml's (``yaml.CDumper``) from
-    OmegaConf 2.4 on where PyYAML has it, the Python one before. The two fold a long string at
-    different places; the one whose text of a long string is OmegaConf's is taken."""
-    probe = {"text": "a long text, " * 20 + "folded"}
+    OmegaConf 2.4 on where PyYAML has it, the Python one before. The two break a long
+    double-quoted string at different places (one escapes the break, the other does not); the
+    one whose text of such a string is OmegaConf's is taken."""
+    probe = {"text": "a long text " * 20 + "\n with lines\n"}  # double-quoted, folded at spaces
     text = OmegaConf.to_yaml(probe)
     for base in (getattr(yaml, "CDumper", None), yaml.Dumper):
         if base is not None and yaml.dump(probe, Dumper=base, default_flow_style=False, allow_unicode=True, sort_keys=False) == text:
