@@ -324,7 +324,8 @@ def test_out_of_memory_while_preparing_is_one_line_and_not_done_twice(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "problem=multipose", "problem.n_poses=3000000", "progress=false",
                            f"hydra.run.dir={tmp_path}/run"], capture_output=True, text=True, cwd=tmp_path, preexec_fn=limit,
                           env={**os.environ, "ZRP_GA_MEMORY": "100G"}, timeout=1200)  # fmt: skip
-    lines = proc.stderr.strip().splitlines()
+    # numba's notice that it compiles the kernels again (a first run at this path) is not the error
+    lines = [line for line in proc.stderr.strip().splitlines() if not line.startswith("compiling the kernels")]
     assert proc.returncode == 2 and len(lines) == 1, proc.stderr
     assert lines[0].startswith("zrp-ga: error: out of memory before the run started (Unable to allocate")
     assert not (tmp_path / "run").exists()
