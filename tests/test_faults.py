@@ -236,10 +236,14 @@ def _cli_with_a_job_failing_with(error: Exception, monkeypatch) -> int:
 
     monkeypatch.setattr(cli_main, "main", failed_job)
     monkeypatch.setattr(sys, "argv", ["zrp-ga"])
-    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
+    monkeypatch.setenv("HYDRA_FULL_ERROR", "0")  # cli() sets it to 1: restored (unset) after the test
     monkeypatch.setattr("logging.raiseExceptions", True)
-    with pytest.raises(SystemExit) as stopped:
-        cli_main.cli()
+    sigterm = signal.getsignal(signal.SIGTERM)
+    try:
+        with pytest.raises(SystemExit) as stopped:
+            cli_main.cli()
+    finally:
+        signal.signal(signal.SIGTERM, sigterm)
     return int(stopped.value.code)
 
 
