@@ -166,7 +166,8 @@ def _short(v) -> str:
 
 
 def main() -> None:
-    cases = [(module, case) for module in (_cases(), _cases("test_bad_inputs_more")) for case in module.CASES]
+    cases = [(module, case) for module in (_cases(), _cases("test_bad_inputs_more"))
+             for case in [*module.CASES, *getattr(module, "TERMS_CASES", ())]]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for k, (module, case) in enumerate(cases):

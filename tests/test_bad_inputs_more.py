@@ -134,6 +134,34 @@ CASES = [
 ]
 
 
+# --- the model's terms beyond geometry (problem.terms, zrp_ga.model.terms) --------------------------
+# Run on the command line by the slow test below (and into docs/bad_inputs.md); the same settings are
+# checked in-process, fast, by tests/test_terms.py::test_bad_terms_settings_are_one_line_naming_the_key.
+TERMS_CASES = [
+    Case("unknown key", "an unknown kind of model term", ("problem.terms={stiffness:[2]}",),
+         "problem.terms: unknown key 'stiffness'; valid: compliance, harmonics, payload"),
+    Case("absurd value", "joint 0 given compliance (joints count from 1)", ("problem.terms={compliance:[0]}",),
+         "problem.terms.compliance: joint 0 is not a joint of puma560 (1..6)"),
+    Case("absurd value", "harmonics of joint 7 of a six-joint arm", ("problem.terms={harmonics:[7]}",),
+         "problem.terms.harmonics: joint 7 is not a joint of puma560 (1..6)"),
+    Case("absurd value", "a negative harmonic order", ("problem.terms={harmonics:{order:-1,joints:[1]}}",),
+         "problem.terms.harmonics.order: must be an integer 1..10, got -1"),
+    Case("absurd value", "a negative payload mass", ("problem.terms={compliance:[2,3],payload:{mass:-5,com:[0,0,0.1]}}",),
+         "problem.terms.payload: mass must be >= 0 kg"),
+    Case("wrong type", "a joint number that is no whole number", ("problem.terms={compliance:[2.5]}",),
+         "problem.terms.compliance: expected joint numbers (1-based integers), got 2.5"),
+    Case("wrong type", "a mapping where the list of joints belongs", ("problem.terms={compliance:{joint:2}}",),
+         "problem.terms.compliance: expected a list of joint numbers (1-based), got {'joint': 2}"),
+    Case("wrong type", "a list where the mapping of terms belongs", ("problem.terms=[2,3]",),
+         "problem.terms: expected a mapping such as"),
+    Case("duplicate entry", "a joint named twice (two genes of one effect)", ("problem.terms={compliance:[2,2]}",),
+         "problem.terms.compliance: joint 2 named twice"),
+    Case("contradictory settings", "a payload without compliance", ("problem.terms={payload:{mass:5,com:[0,0,0.1]}}",),
+         "problem.terms.payload: a payload acts through joint compliance; name the joints in problem.terms.compliance"),
+    Case("missing setting", "a harmonic order without joints (fits nothing)", ("problem.terms={harmonics:{order:2}}",),
+         "problem.terms.harmonics.joints: no joint named"),
+]  # fmt: skip
+
 def run_case(case: Case, folder: Path) -> subprocess.CompletedProcess:
     folder.mkdir(parents=True, exist_ok=True)
     for name, text in case.files:
@@ -157,6 +185,12 @@ def test_bad_input_is_one_line_exit_2_and_leaves_nothing(case, tmp_path):
     assert case.expect in lines[0], lines[0]
     assert not (tmp_path / "run").exists() and not (tmp_path / "outputs").exists()
 
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", TERMS_CASES, ids=[f"{c.kind}: {c.what}" for c in TERMS_CASES])
+def test_bad_terms_are_one_line_exit_2_and_leave_nothing(case, tmp_path):
+    test_bad_input_is_one_line_exit_2_and_leaves_nothing(case, tmp_path)
 
 # --- the size budget ---------------------------------------------------------------------------------
 def test_memory_estimate_bounds_the_measured_peak(tmp_path):
@@ -324,7 +358,8 @@ def test_out_of_memory_while_preparing_is_one_line_and_not_done_twice(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "problem=multipose", "problem.n_poses=3000000", "progress=false",
                            f"hydra.run.dir={tmp_path}/run"], capture_output=True, text=True, cwd=tmp_path, preexec_fn=limit,
                           env={**os.environ, "ZRP_GA_MEMORY": "100G"}, timeout=1200)  # fmt: skip
-    lines = proc.stderr.strip().splitlines()
+    # numba's notice that it compiles the kernels again (a first run at this path) is not the error
+    lines = [line for line in proc.stderr.strip().splitlines() if not line.startswith("compiling the kernels")]
     assert proc.returncode == 2 and len(lines) == 1, proc.stderr
     assert lines[0].startswith("zrp-ga: error: out of memory before the run started (Unable to allocate")
     assert not (tmp_path / "run").exists()

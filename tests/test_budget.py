@@ -188,6 +188,38 @@ def test_the_api_counts_data_in_memory(monkeypatch):
         zrp_ga.calibrate(arm, (q, p), algorithm="lm")
 
 
+# --- the parts of a calibration problem, by hand ------------------------------------------------
+def test_a_calibration_problems_parts_by_hand():
+    """``problems.size.calibration``'s parts from its docstring's formulas, written out here with
+    the numbers of one shape (n = 6 joints, K = 42 genes, M = 30 and V = 100 poses of 6 rows):
+    eight K x K float64 matrices for the parameters (8 x 42 x 42 x 8 = 112 896 bytes)."""
+    p = calibration(n=6, genes=42, poses=30, validation=100, rows_per_pose=6)
+    assert p.rows == 6 * 30 + 6 == 186
+    assert p.held_bytes["parameters"] == 8 * 42 * 42 * 8 == 112_896
+    # four copies of the (M, 6, K) Jacobians, the rotations (M, n + 1, 3, 3) twice, three (R, K) matrices
+    assert p.held_bytes["poses"] == 8 * (4 * 30 * 6 * 42 + 2 * 30 * 7 * 9) + 8 * 3 * 186 * 42 == 459_648
+    assert p.held_bytes["validation"] == 8 * (4 * 100 * 6 * 42 + 2 * 100 * 7 * 9) == 907_200
+    assert p.genome_bytes == 2 * 186 * 8
+
+
+@pytest.mark.parametrize("n", [1, 6, 40])
+def test_the_budget_counts_eight_k_by_k_matrices_of_a_simulated_problem(n):
+    """Through the run's estimate (the simulated kind's ``size`` of an n-joint arm, with the
+    margin): the parameters part is eight K x K float64 matrices, K = 6n genes (the default
+    layout: six per joint, no base or hand genes); for 40 joints (K = 240: 3.7 MB) they are
+    most of what the problem holds."""
+    from zrp_ga.problems import simulated
+
+    arm = robots.get("puma560") if n == 6 else robots.ZRPRobot.from_dh([0.1] * n, [0.3] * n, [np.pi / 2] * n, name=f"chain{n}")
+    problem = simulated.size(arm, n_poses=20, n_validation=0)
+    K = 6 * n
+    assert problem.genes == K
+    e = budget.estimate(problem, AlgorithmSize(population=1, evaluations=1, held_bytes=0.0))
+    assert e.memory["parameters"] == pytest.approx(1.25 * 8 * K * K * 8, rel=1e-12)
+    if n == 40:
+        assert e.memory["parameters"] > e.memory["poses"]
+
+
 # --- a problem kind and an optimiser added by the README's recipe --------------------------------
 TOY = '''
 """A toy problem kind and a toy optimiser, each added as the README's recipe says."""

@@ -199,7 +199,7 @@ def test_a_full_disk_under_the_lockstep_launcher_ends_in_one_line(tiny_disk):
             "hydra/launcher=zrp_ga", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={sweep}"]  # fmt: skip
     proc = _zrp_ga(*args)
     _ends_in_one_line_naming_a_file(proc, sweep)
-    assert len(_lines(proc.stderr)) <= 2, proc.stderr  # Hydra's "Error executing job with overrides" and ours
+    assert len(_lines(proc.stderr)) == 1, proc.stderr  # ours: not Hydra's "Error executing job with overrides" too
     m = directory.read_manifest(sweep)
     assert list(m["status"]) == ["failed"] * 4 and m["error"].str.contains("No space left on device").all(), m
     for d in m["dir"]:
@@ -218,8 +218,47 @@ def test_a_full_disk_under_a_single_run_ends_in_one_line(tiny_disk):
     out = tiny_disk / "run"
     proc = _zrp_ga(*SMALL, "population.generations=2000", "checkpoint_every=2", "progress=false", f"hydra.run.dir={out}")
     _ends_in_one_line_naming_a_file(proc, out)
-    assert len(_lines(proc.stderr)) <= 2, proc.stderr
+    assert len(_lines(proc.stderr)) == 1, proc.stderr
     _nothing_lost(out)
+
+
+def _cli_with_a_job_failing_with(error: Exception, monkeypatch) -> int:
+    """``zrp-ga``'s console script whose Hydra job failed with ``error``: Hydra's
+    ``JobReturn.return_value`` writes its line and raises it, as after a run or a sweep's batch."""
+    from hydra.core.utils import JobReturn, JobStatus
+
+    from zrp_ga.cli import main as cli_main
+
+    def failed_job() -> None:
+        ret = JobReturn(overrides=["seed=1"], status=JobStatus.FAILED)
+        ret.return_value = error
+        ret.return_value  # noqa: B018
+
+    monkeypatch.setattr(cli_main, "main", failed_job)
+    monkeypatch.setattr(sys, "argv", ["zrp-ga"])
+    monkeypatch.setenv("HYDRA_FULL_ERROR", "0")  # cli() sets it to 1: restored (unset) after the test
+    monkeypatch.setattr("logging.raiseExceptions", True)
+    sigterm = signal.getsignal(signal.SIGTERM)
+    try:
+        with pytest.raises(SystemExit) as stopped:
+            cli_main.cli()
+    finally:
+        signal.signal(signal.SIGTERM, sigterm)
+    return int(stopped.value.code)
+
+
+def test_a_jobs_error_is_our_one_line_without_hydras(monkeypatch, capsys):
+    error = OSError(errno.ENOSPC, "No space left on device", "/disk/run/checkpoint.npz")
+    assert _cli_with_a_job_failing_with(error, monkeypatch) == 2
+    assert capsys.readouterr().err.splitlines() == ["zrp-ga: error: /disk/run/checkpoint.npz: No space left on device"]
+
+
+def test_hydras_line_is_kept_for_an_error_that_is_not_one_line(monkeypatch, capsys):
+    """An error cli() does not turn into a line (a defect: its traceback follows) keeps Hydra's
+    line naming the job's overrides."""
+    with pytest.raises(ZeroDivisionError):
+        _cli_with_a_job_failing_with(ZeroDivisionError("x"), monkeypatch)
+    assert capsys.readouterr().err.splitlines() == ["Error executing job with overrides: ['seed=1']"]
 
 
 def test_a_run_whose_process_died_is_set_failed_unless_it_ended_or_is_held(tmp_path):

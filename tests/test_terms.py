@@ -221,6 +221,17 @@ def test_exports_write_the_geometric_part_and_say_so(tmp_path, caplog):
     ({"harmonics": {"order": 0, "joints": [1]}}, "order"),
     ({"stiffness": [2]}, "unknown key 'stiffness'"),
     ({"payload": {"mass": 3}}, "acts through joint compliance"),
+    ({"compliance": [0]}, "compliance: joint 0 is not a joint of puma560"),
+    ({"harmonics": [7]}, "harmonics: joint 7 is not a joint of puma560"),
+    ({"harmonics": {"order": -1, "joints": [1]}}, r"harmonics.order: must be an integer 1..10, got -1"),
+    ({"compliance": [2, 3], "payload": {"mass": -5, "com": [0, 0, 0.1]}}, "payload: mass must be >= 0 kg"),
+    ({"compliance": [2.5]}, r"compliance: expected joint numbers \(1-based integers\), got 2.5"),
+    ({"compliance": {"joint": 2}}, r"compliance: expected a list of joint numbers \(1-based\), got \{'joint': 2\}"),
+    ({"harmonics": {"order": 1, "joints": {"joint": 2}}}, r"harmonics.joints: expected a list of joint numbers"),
+    ([2, 3], "problem.terms: expected a mapping"),
+    ({"compliance": [2, 2]}, "compliance: joint 2 named twice"),
+    ({"harmonics": [1, 3, 1]}, "harmonics: joint 1 named twice"),
+    ({"harmonics": {"order": 2}}, "harmonics.joints: no joint named"),
 ])  # fmt: skip
 def test_bad_terms_settings_are_one_line_naming_the_key(value, message):
     from zrp_ga.problems import with_terms

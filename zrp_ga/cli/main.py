@@ -95,17 +95,47 @@ def cli() -> None:
     # traceback on stderr: the run's own error names the file (and the console has the line).
     logging.raiseExceptions = False
     _register_launcher()
+    held = _JobLineHeld(sys.stderr)
     try:
-        with _few_collections():
+        with _few_collections(), contextlib.redirect_stderr(held):
             main()
     except (HydraException, OmegaConfBaseException, ValueError, OSError, MemoryError, Refused) as exc:
         if full:
+            held.release()
             raise
         print(f"zrp-ga: error: {_hint(one_line(getattr(exc, 'error', exc)))}", file=sys.stderr)
         sys.exit(2)
     except KeyboardInterrupt:
         print(f"\nzrp-ga: interrupted; {_continue_with()}", file=sys.stderr)
         sys.exit(130)
+    except BaseException:
+        held.release()
+        raise
+
+
+class _JobLineHeld:
+    """``sys.stderr`` with Hydra's line ``Error executing job with overrides: [...]`` (written
+    by ``JobReturn.return_value`` just before it raises a job's error, in a single run and in
+    a sweep) held back: :func:`cli`'s own line names what failed (a full disk: the file), so it
+    is the only line; written out (:meth:`release`) before any other error's traceback."""
+
+    PREFIX = "Error executing job with overrides: "
+
+    def __init__(self, stream: Any) -> None:
+        self.stream, self.held = stream, []
+
+    def write(self, text: str) -> int:
+        if text.startswith(self.PREFIX):
+            self.held.append(text)
+            return len(text)
+        return self.stream.write(text)
+
+    def release(self) -> None:
+        self.stream.writelines(self.held)
+        self.held.clear()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.stream, name)
 
 
 def _hint(message: str) -> str:

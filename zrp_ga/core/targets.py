@@ -62,10 +62,13 @@ def create(spec: Any, key: str, **kwargs: Any) -> Any:
     """The object of the config's spec ``spec`` at ``key`` (``robot``, ``problem``,
     ``algorithm``): :func:`instantiate` as a partial (a missing setting takes the target's
     default), called with ``kwargs``; the user's mistakes as one line: a ValueError or OSError of
-    the target raised as itself, any other failure a ConfigError naming ``key``."""
+    the target raised as itself, any other failure a ConfigError naming ``key``. Running out of
+    memory is no mistake in the spec: a MemoryError is raised as itself, for the caller's one
+    line about memory (not "problem: ...: MemoryError"); resources that are OSErrors (a full
+    disk, too many open files) are raised as themselves already."""
     try:
         return instantiate(spec, _partial_=True)(**kwargs)
-    except (ValueError, OSError):
+    except (ValueError, OSError, MemoryError):
         raise
     except TargetError as exc:
         raise ConfigError(f"{key}: {exc}") from None

@@ -167,12 +167,14 @@ def _joint_list(value: Any, key: str) -> tuple[int, ...]:
         return ()
     if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
         value = [value]
-    if isinstance(value, str) or not isinstance(value, Iterable):
+    if isinstance(value, (str, Mapping)) or not isinstance(value, Iterable):
         raise ValueError(f"{key}: expected a list of joint numbers (1-based), got {value!r}")
-    out = []
+    out: list[int] = []
     for v in value:
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
             raise ValueError(f"{key}: expected joint numbers (1-based integers), got {v!r}")
+        if int(v) in out:  # two genes of one effect: neither identifiable
+            raise ValueError(f"{key}: joint {int(v)} named twice")
         out.append(int(v))
     return tuple(out)
 
@@ -202,6 +204,9 @@ def parse(value: Any, key: str = "problem.terms") -> tuple[TermSpec, tuple[float
         if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= order <= 10:
             raise ValueError(f"{key}.harmonics.order: must be an integer 1..10, got {order!r}")
         harmonics = _joint_list(h.get("joints"), f"{key}.harmonics.joints")
+        if not harmonics:  # an order alone would fit nothing
+            raise ValueError(f"{key}.harmonics.joints: no joint named; give the joints whose angles have harmonics, "
+                             "e.g. {order: 2, joints: [1]}")  # fmt: skip
     else:
         harmonics = _joint_list(h, f"{key}.harmonics")
     payload = None
