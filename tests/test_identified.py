@@ -152,6 +152,19 @@ def test_the_robust_cost_is_scipys():
     assert np.isclose(robust.costs(X)[1] ** 2, np.sum(2 * 2e-4**2 * (np.sqrt(1 + (f / 2e-4) ** 2) - 1)), rtol=1e-12)
 
 
+def test_levenberg_marquardt_fits_scipys_robust_loss():
+    """On a robust problem, alone or restricted to directions (as identify's first fit is),
+    levenberg_marquardt ends at scipy's robust optimum of the plain rows, not at the plain
+    least-squares one, which the outliers pull away."""
+    _, _, problem, _ = tracker_problem(1, data=with_outliers(1))
+    robust = RobustProblem(**identify._fields(problem), loss="soft_l1", loss_scale=2e-4)
+    ref = least_squares(robust.plain_residual, np.zeros(36), jac=lambda x: -robust.plain_jacobian(x), loss="soft_l1",
+                        f_scale=2e-4, method="trf", x_scale=1e-3)  # fmt: skip
+    assert robust.costs(levenberg_marquardt(problem).x)[0] ** 2 > 1.2 * 2 * ref.cost
+    for fitted in (robust, identify._Within(robust, np.eye(36))):
+        assert levenberg_marquardt(fitted).cost ** 2 <= 2 * ref.cost * (1 + 1e-6)
+
+
 def test_the_pseudo_inverse_step_minimises_the_robust_cost():
     """Reweighted steps (the GA's pseudo-inverse step on a robust problem) end where scipy's
     loss does."""

@@ -103,7 +103,7 @@ def calibrate(
     seed: int | Sequence[int] = 0,
     out: str | Path | None = None,
     progress: bool = False,
-    terms: dict | None = None,
+    terms: dict[str, Any] | None = None,
     **settings: Any,
 ) -> Calibration | list[Calibration]:
     """Calibrate ``robot`` (a :class:`ZRPRobot`, a preset name or a robot file) on ``data``
@@ -162,15 +162,15 @@ def calibrate(
                              "measured data; give the calibration data too (a simulated problem makes its own validation "
                              "poses: problem={'n_validation': ...})")  # fmt: skip
         seeds = _seeds(seed)
-        if seeds is None:
+        if isinstance(seeds, int):
             outs = None if out is None else [_out(out)]
-            return _calibrate(robot, data, validation, algorithm, [int(seed)], outs, progress, settings)[0]
+            return _calibrate(robot, data, validation, algorithm, [seeds], outs, progress, settings)[0]
         outs = None if out is None else [_out(Path(_out(out)) / f"seed_{s}") for s in seeds]
         return _calibrate(robot, data, validation, algorithm, seeds, outs, progress, settings)
 
 
-def _seeds(seed: Any) -> list[int] | None:
-    """None for one seed (a whole number >= 0), the seeds of a list of distinct ones; a
+def _seeds(seed: Any) -> int | list[int]:
+    """The one seed (a whole number >= 0) as an int, the seeds of a list of distinct ones; a
     ValueError on one line for anything else: a string (not read as a list of characters), a
     float, a bool, a negative number, repeats."""
     from zrp_ga.core import checks
@@ -178,7 +178,7 @@ def _seeds(seed: Any) -> list[int] | None:
     single = isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_))
     if single:
         checks.seed(int(seed), "calibrate(): seed")
-        return None
+        return int(seed)
     wanted = "a whole number >= 0, or a list of distinct ones"
     if isinstance(seed, (str, bytes)) or not isinstance(seed, (Sequence, np.ndarray)):
         raise ValueError(f"calibrate(): seed: {wanted}, got {seed!r}")
@@ -344,7 +344,7 @@ def _frame(what: str, q: ArrayLike, p: ArrayLike, o: ArrayLike | None = None, st
 LOSSY_EPS = 1e-6  # a float type with a relative step above this (float16's 1e-3: about 1 mm at 1 m) is refused
 
 
-def _precise(what: str, name: str, a) -> None:
+def _precise(what: str, name: str, a: object) -> None:
     """ValueError on one line for numbers held in a type that loses what a calibration needs: a
     float type of fewer than 7 significant digits (float16: steps of about 1 mm at 1 m, 0.25
     degrees at 180), complex numbers. float32 (7 digits: 0.1 um at 1 m) passes."""

@@ -23,7 +23,8 @@ from __future__ import annotations
 import enum
 import functools
 import re
-from typing import Any
+from collections.abc import Callable
+from typing import Any, Protocol
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
@@ -78,13 +79,23 @@ def _add(*values: Any) -> int:
     return sum(int(v) for v in values)
 
 
+class _Register(Protocol):
+    """OmegaConf's resolver registration taking ``replace`` and ``use_cache`` (2.4.1's
+    ``register_resolver``, 2.3's ``register_new_resolver``)."""
+
+    def __call__(self, name: str, resolver: Callable[..., Any], *, replace: bool = False, use_cache: bool = False) -> None: ...
+
+
 def _register_resolvers() -> None:
     """The resolvers, through OmegaConf's ``register_resolver`` where it takes ``use_cache``
     (OmegaConf 2.4.1, which deprecates ``register_new_resolver``), else ``register_new_resolver``
     (2.3, whose ``register_resolver`` is the legacy one)."""
     import inspect
 
-    register = OmegaConf.register_resolver if "use_cache" in inspect.signature(OmegaConf.register_resolver).parameters else OmegaConf.register_new_resolver
+    # By name: the one chosen takes ``replace`` and ``use_cache`` in either version, which the
+    # installed version's stubs cannot tell for both (2.3's ``register_resolver`` takes neither).
+    name = "register_resolver" if "use_cache" in inspect.signature(OmegaConf.register_resolver).parameters else "register_new_resolver"
+    register: _Register = getattr(OmegaConf, name)
     register("zrp_ga.sqlite", _sqlite, replace=True)
     register("zrp_ga.study_size", study_size, use_cache=True, replace=True)
     register("zrp_ga.add", _add, replace=True)

@@ -39,7 +39,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]  # zrp_ga/, above core/
 T = TypeVar("T")
@@ -146,7 +146,7 @@ def _install_locator(caching) -> bool:
     """Put this package's cache locator in numba's list; False if that cannot be done."""
     try:
         locators = caching.CacheImpl._locator_classes
-        base = caching.UserWideCacheLocator
+        base: Any = caching.UserWideCacheLocator  # a class found at run time (numba.core.caching)
     except AttributeError:
         return False
 

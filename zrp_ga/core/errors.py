@@ -44,7 +44,8 @@ def to_log_files(log: logging.Logger, level: int, lines: Sequence[str]) -> None:
     """``lines`` as records of ``log`` handed to the log files only: the file handlers of
     ``log`` and of its ancestors (Hydra's job log, ``hydra.job_logging``), not the console's
     stream handlers."""
-    handlers, logger = [], log
+    handlers: list[logging.FileHandler] = []
+    logger: logging.Logger | None = log
     while logger is not None:
         handlers += [h for h in logger.handlers if isinstance(h, logging.FileHandler)]
         logger = logger.parent if logger.propagate else None

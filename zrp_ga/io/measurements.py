@@ -319,14 +319,14 @@ def _bad_cells(values: Array, columns: list[str], u: _Units, fmt: Format, robot:
         for j, c in enumerate(columns):
             scale, bound, si, unit, what, more = bounds[kind[c]]
             v = values[:, j]
-            bad += [(r, j, None) for r in np.flatnonzero(~np.isfinite(v))]
-            bad += [(r, j, f"{v[r]:g} {unit} is {what} (more than {bound:.4g} {si}{more})")
+            bad += [(int(r), j, None) for r in np.flatnonzero(~np.isfinite(v))]
+            bad += [(int(r), j, f"{v[r]:g} {unit} is {what} (more than {bound:.4g} {si}{more})")
                     for r in np.flatnonzero(np.abs(v) * scale > bound)]  # fmt: skip
             if kind[c] == "S":
-                bad += [(r, j, f"{v[r]:g}: a standard deviation must be > 0") for r in np.flatnonzero(v <= 0)]
+                bad += [(int(r), j, f"{v[r]:g}: a standard deviation must be > 0") for r in np.flatnonzero(v <= 0)]
     bad += _far_points(values, columns, fmt, u, robot, {r for r, _, _ in bad})
     if tools is not None:
-        bad += [(r, len(columns), "empty") for r in np.flatnonzero(tools == "")]
+        bad += [(int(r), len(columns), "empty") for r in np.flatnonzero(tools == "")]
     return sorted(bad, key=lambda b: (b[0], b[1]))
 
 
@@ -337,7 +337,7 @@ def _far_points(values: Array, columns: list[str], fmt: Format, u: _Units, robot
     rows = np.array([r for r in range(len(values)) if r not in skip], dtype=int)
     if len(rows) < 3:
         return []
-    off = values[np.ix_(rows, cols)] * u.length
+    off = values[np.ix_(rows, np.array(cols, dtype=int))] * u.length
     off -= np.median(off, axis=0)
     reach = reach_m(robot)
     out = []
@@ -408,7 +408,8 @@ def _measurements(fmt: Format, robot: ZRPRobot, columns: list[str], values: Arra
         R = (Rotation.from_rotvec(angles) if conv == ROTVEC else Rotation.from_euler(conv, angles)).as_matrix()
     if fmt.std and fmt.std[0] in col:
         std = np.column_stack([col[c] for c in fmt.std]) * u.length
-    tool, names = None, ()
+    tool: NDArray[np.int64] | None = None
+    names: tuple[str, ...] = ()
     if tools is not None:
         names = tuple(dict.fromkeys(tools.tolist()))  # first appearance order
         index = {name: k for k, name in enumerate(names)}
@@ -424,7 +425,8 @@ def shared_rows(calib: Measurements, val: Measurements) -> list[tuple[int, int]]
         tool = m.tool_names[m.tool[k]] if m.tool is not None else ""
         return m.q[k].tobytes() + m.p[k].tobytes() + str(tool).encode()
 
-    first = {}
+    assert calib.lines is not None and val.lines is not None  # Measurements numbers its rows
+    first: dict[bytes, int] = {}
     for k in range(calib.M):
         first.setdefault(key(calib, k), int(calib.lines[k]))
     return [(int(val.lines[k]), first[key(val, k)]) for k in range(val.M) if key(val, k) in first]

@@ -111,7 +111,7 @@ def ur_kinematics(robot: ZRPRobot, like: DHTable | None = None, world: str = "ba
         near = None if nominal is None else rpy_near((np.linalg.inv(nominal[i]) @ nominal[i + 1])[:3, :3])
         numbers = [*joints[i][:3, 3], *rpy_near(joints[i][:3, :3], near)]
         kinematics[section] = {k: float(v) + 0.0 for k, v in zip(KEYS, numbers)}
-    return URKinematics(kinematics, np.linalg.inv(frames[-1]) @ hand, joints)
+    return URKinematics(kinematics, np.asarray(np.linalg.inv(frames[-1]) @ hand, dtype=np.float64), joints)
 
 
 def _link_frames(table: DHTable, start: Array) -> list[Array]:

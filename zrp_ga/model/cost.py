@@ -81,7 +81,7 @@ class CalibrationProblem:
         self.J_nominal = self._jacobian(np.zeros(K), exact=False)
         self.y_nominal = self._residual(np.zeros(K))  # [dr; dp; 0] of the nominal robot
 
-    def _tool_groups(self) -> list[tuple[int, Array | slice, tuple, Array, Array | None, Array]]:
+    def _tool_groups(self) -> list[tuple[int, NDArray[np.intp] | slice, tuple[Array, Array, Array], Array, Array | None, Array]]:
         """Per tool with poses: (tool, rows, joint terms, positions, orientations, weights); one
         group holding every pose (rows a full slice) when the data name one tool."""
         data, tools = self.data, self.data.tools
@@ -91,7 +91,7 @@ class CalibrationProblem:
         groups = []
         for k in np.unique(tools):
             rows = slice(None) if np.all(tools == k) else np.flatnonzero(tools == k)
-            R = None if data.position_only else np.ascontiguousarray(data.R[rows])
+            R = None if data.R is None else np.ascontiguousarray(data.R[rows])
             terms = kinematics.joint_terms(data.q[rows], self.nominal.prismatic)
             groups.append((int(k), rows, terms, np.ascontiguousarray(data.p[rows]), R,
                            np.ascontiguousarray(self._position_weights[rows])))  # fmt: skip
@@ -116,10 +116,11 @@ class CalibrationProblem:
                 total = np.einsum("pr,pr->p", r, r)
             else:
                 m = self.layout.unpack(self.nominal, X)
-                sums = 0.0
+                sums = np.zeros((2, X.shape[0]))
                 for (k, rows, jt, p, R, w), phi in zip(self._groups, self._phi):
                     t = m.for_tool(k)
                     if phi is not None:  # each genome's own joint angles
+                        assert m.theta is not None  # unpack sets the term genes whenever the layout has terms
                         dq = terms.offsets(self.layout.terms, self.nominal.n, phi, m.theta)
                         jt = kinematics.joint_terms_lanes(self.data.q[rows], dq, self.nominal.prismatic)
                     sums = sums + kinematics.residual_sums_unchecked(t.U, t.B, t.H, jt, p, R, w, kernel=self.kernel.value)
@@ -168,7 +169,7 @@ class CalibrationProblem:
         data = self.data
         R, p = self._poses(self.layout.unpack(self.nominal, x))
         dp = data.p - p
-        pose = dp if data.position_only else np.hstack([error_model.pose_error(data.R, data.p, R, p)[0], dp])
+        pose = dp if data.R is None else np.hstack([error_model.pose_error(data.R, data.p, R, p)[0], dp])
         du0 = self.layout.expand(x)[: 3 * self.nominal.n].reshape(-1, 3)  # every axis, fixed ones at nominal
         unit = -0.5 * (np.sum((self.nominal.u0 + du0) ** 2, axis=1) - 1.0)
         return np.concatenate([pose.ravel(), unit]) * self._row_weights
@@ -187,7 +188,7 @@ class CalibrationProblem:
         J = self._tool_jacobians(unit, m, compiled=exact)
         if self.layout.terms:
             J[:, :, blocks["terms"]] = self._term_columns(unit, m)
-        if data.position_only:
+        if data.R is None:  # position only
             J = J[:, 3:]
         elif exact:
             if self.layout.hand:  # dexp of the hand rotation vector: its left Jacobian
@@ -217,6 +218,7 @@ class CalibrationProblem:
             arm = types.SimpleNamespace(u0=unit, b0=m.for_tool(k).B[:, :, 0], R_h0=m.H[:, :, 0], prismatic=self.nominal.prismatic,
                                         n=self.nominal.n)  # fmt: skip
             Jq = terms.joint_jacobian(arm, q[rows])
+            assert phi is not None  # every group has its features when the layout has terms
             out[rows] = Jq[:, :, joints] * phi[:, None, :]
         return out
 

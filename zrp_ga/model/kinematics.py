@@ -38,6 +38,7 @@ experiments/README.md, section f, for their speeds; ranges of three runs):
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -198,7 +199,7 @@ def residual_sums_unchecked(
     U, B, H, p_meas = (_kernel_array(a) for a in (U, B, H, p_meas))
     P, M = U.shape[2], p_meas.shape[0]
     use_rot = R_meas is not None
-    R = _kernel_array(R_meas) if use_rot else np.zeros((M, 3, 3))
+    R = _kernel_array(R_meas) if R_meas is not None else np.zeros((M, 3, 3))
     wp = np.ones((M, 3)) if weights is None else _kernel_array(weights)
     c, s, t = (_kernel_array(a) for a in terms)
     check_layout(U, B, H, c, s, t, p_meas, wp, R)
@@ -250,7 +251,7 @@ def _run_chunks(name: str, args: tuple, P: int, M: int, threads: int | None) -> 
     share."""
     from zrp_ga.model import _kernels
 
-    fn = getattr(_kernels, name)
+    fn: Callable[..., None] = getattr(_kernels, name)
     chunks = -(-P // _kernels.LANES)
     if threads is None:
         threads = _usable_cores() if P * M >= AUTO_THREADS_MIN_EVALS else 1

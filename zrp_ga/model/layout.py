@@ -134,6 +134,7 @@ class Layout:
             if G.shape != N.shape[::-1] or not np.allclose(G @ N, np.eye(N.shape[1]), atol=1e-9):
                 raise ValueError("layout.basis: the columns are not orthonormal (and no left inverse layout.dual is given)")
             G.setflags(write=False)
+            self._left: Array  # declared for the type checker; frozen: set through object.__setattr__
             object.__setattr__(self, "_left", G)  # not the field: a replaced basis gets its own
             if self.fixed and np.abs(N[[self.full_names.index(k) for k in self.fixed]]).max() > 1e-9:
                 raise ValueError("layout.basis: moves a fixed gene")
@@ -346,7 +347,10 @@ class Layout:
         then the tools with genes, then the known ones), axes normalised."""
         m = self.unpack(nominal, x)
         u0, b0, R_h0 = (a[0] for a in m.for_tool(tool).population_first())
-        terms = Terms(self.terms, m.theta[:, 0]) if self.terms else None
+        terms = None
+        if self.terms:
+            assert m.theta is not None  # unpack sets the term genes whenever the layout has terms
+            terms = Terms(self.terms, m.theta[:, 0])
         return nominal.replace(u0=u0, b0=b0, R_h0=R_h0, name=name or nominal.name, normalize=True, terms=terms)
 
 

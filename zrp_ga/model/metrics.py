@@ -39,6 +39,7 @@ def predicted_positions(layout: Layout, nominal: ZRPRobot, X: ArrayLike, data: M
         u0, b0, R_h0 = m.for_tool(int(k)).population_first()
         dq = None
         if layout.terms:  # the non-geometric terms' joint offsets, features on the nominal arm (zrp_ga.model.terms)
+            assert m.theta is not None  # unpack sets the term genes whenever the layout has terms
             dq = terms.offsets(layout.terms, nominal.n, terms.features(layout.terms, nominal, data.q[rows]), m.theta)
         p[:, rows] = kinematics.forward_batch(u0, b0, R_h0, data.q[rows], nominal.prismatic, dq)[1]
     return p

@@ -71,6 +71,7 @@ class Measurements:
 
     def where(self, row: int) -> str:
         """Row ``row`` as messages name it (``line 12`` of a file, ``row 11`` of a DataFrame)."""
+        assert self.lines is not None  # __post_init__ numbers the rows when none were given
         return f"{self.row_name} {self.lines[row]}"
 
     def for_calibration(self, orientation: bool = False, weights: bool = False) -> Measurements:
@@ -84,6 +85,7 @@ class Measurements:
     def subset(self, rows: NDArray) -> Measurements:
         """The rows ``rows`` (indices or a mask), with their file lines."""
         pick = lambda a: None if a is None else a[rows]
+        assert self.lines is not None  # __post_init__ numbers the rows when none were given
         return dataclasses.replace(self, q=self.q[rows], p=self.p[rows], R=pick(self.R), weights=pick(self.weights),
                                    std=pick(self.std), lines=self.lines[rows], tool=pick(self.tool))  # fmt: skip
 

@@ -74,6 +74,7 @@ class Registration:
         if len(self.tools) > 1:
             out["tools_m"] = dict(zip(self.tool_names, self.tools.tolist()))
         if self.tool_rotation is not None:
+            assert self.rms_angle is not None  # estimated with the tool's rotation (register(rotations=...))
             out.update(tool_rotation=self.tool_rotation.tolist(), rms_angle_deg=np.degrees(self.rms_angle))
         return out
 

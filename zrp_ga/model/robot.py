@@ -183,10 +183,10 @@ class ZRPRobot:
         ``joint_names`` and ``limits`` are passed on to the robot.
         """
         n = len(d)
-        offset = np.zeros(n) if offset is None else np.asarray(offset, dtype=float)
+        theta0 = np.zeros(n) if offset is None else np.asarray(offset, dtype=float)
         frames = [np.eye(4) if base is None else _array("base", base, (4, 4))]
         for i in range(n):
-            frames.append(frames[-1] @ _dh(offset[i], d[i], a[i], alpha[i]))
+            frames.append(frames[-1] @ _dh(theta0[i], d[i], a[i], alpha[i]))
         axis_frames = frames[:-1]  # joint i turns about z of frame i-1
         extra = dict(joint_names=joint_names, limits=limits)
         return cls._from_frames(axis_frames, frames[-1], tool, joint_types, name, **extra)
@@ -211,11 +211,11 @@ class ZRPRobot:
         frame i.
         """
         n = len(d)
-        offset = np.zeros(n) if offset is None else np.asarray(offset, dtype=float)
+        theta0 = np.zeros(n) if offset is None else np.asarray(offset, dtype=float)
         T = np.eye(4) if base is None else _array("base", base, (4, 4))
         frames = []
         for i in range(n):
-            T = T @ _rx(alpha[i]) @ _tx(a[i]) @ _rz(offset[i]) @ _tz(d[i])
+            T = T @ _rx(alpha[i]) @ _tx(a[i]) @ _rz(theta0[i]) @ _tz(d[i])
             frames.append(T)
         extra = dict(joint_names=joint_names, limits=limits)
         return cls._from_frames(frames, frames[-1], tool, joint_types, name, **extra)

@@ -19,6 +19,7 @@ exactly those it would have alone. An operator that draws only through :func:`dr
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
+from typing import Any, TypeVar, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -131,14 +132,25 @@ def swap_segments(A: Array, B: Array, lo: NDArray, hi: NDArray) -> None:
     np.copyto(B, a, where=mask)
 
 
-def batched(fn: Callable | None = None, *, streams: bool = False) -> Callable:
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+@overload
+def batched(fn: F, *, streams: bool = False) -> F: ...
+
+
+@overload
+def batched(fn: None = None, *, streams: bool = False) -> Callable[[F], F]: ...
+
+
+def batched(fn: F | None = None, *, streams: bool = False) -> F | Callable[[F], F]:
     """Mark ``fn`` as taking batches of genomes (N, K) and a ``rng``: :func:`build` then calls it
     on a whole generation rather than one individual at a time. ``streams=True``: it draws only
     through :func:`draw` and :func:`parts`, so that one call can vary the rows of several runs
     (module docstring)."""
 
-    def mark(fn: Callable) -> Callable:
-        fn.batched, fn.streams = True, streams
+    def mark(fn: F) -> F:
+        fn.batched, fn.streams = True, streams  # type: ignore[attr-defined]  # function attributes, read back with getattr
         return fn
 
     return mark if fn is None else mark(fn)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from deap import base
@@ -26,12 +27,12 @@ class _Fitness(base.Fitness):
     weights = (-1.0,)
 
 
-class _Individual(list):
-    """A stand-in individual for DEAP's selection operators: its index and fitness."""
+class _Individual(list[int]):
+    """A stand-in individual for DEAP's selection operators: its row in the batch and fitness."""
 
     def __init__(self, index: int, cost: float):
         super().__init__([index])
-        self.index = index
+        self.row = index  # (not ``index``: that is list's method)
         self.fitness = _Fitness((cost if np.isfinite(cost) else np.inf,))
 
 
@@ -60,12 +61,13 @@ def mutation(fn: Callable, ind: Array, **params) -> tuple[Array]:
 
 def selection(fn: Callable, costs: Array, k: int, **params) -> np.ndarray:
     chosen = fn([_Individual(i, c) for i, c in enumerate(np.asarray(costs, dtype=float))], k, **params)
-    return np.array([ind.index for ind in chosen], dtype=np.intp)
+    return np.array([ind.row for ind in chosen], dtype=np.intp)
 
 
 def wrap(fn: Callable, family: str, **params) -> Callable:
     """``fn`` with ``params`` bound, applied per individual as an operator of ``family``
     (``crossover``, ``selection``, or any one-genome family: mutation, inversion, rotation)."""
     params = _lists(params)
-    adapter = {"crossover": crossover, "selection": selection}.get(family, mutation)
+    adapters: dict[str, Callable[..., Any]] = {"crossover": crossover, "selection": selection}
+    adapter = adapters.get(family, mutation)
     return functools.partial(adapter, fn, **params)

@@ -38,6 +38,7 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 from deap import base, creator
 
+from zrp_ga.core.problem import Problem
 from zrp_ga.operators.repair import repair
 
 if not hasattr(creator, "ZRPFitness"):
@@ -48,7 +49,7 @@ Fitness = creator.ZRPFitness
 Individual = creator.ZRPIndividual  # a list of genes: DEAP's operators swap slices of lists correctly
 
 
-def evaluator(problem) -> Callable[[Iterable[float]], tuple[float]]:
+def evaluator(problem: Problem) -> Callable[[Iterable[float]], tuple[float]]:
     """``evaluate(individual) -> (cost,)`` for one individual; NaN or inf (genes that break the
     model) become the largest float, DEAP's worst fitness for minimisation."""
 
@@ -56,11 +57,11 @@ def evaluator(problem) -> Callable[[Iterable[float]], tuple[float]]:
         cost = float(problem.costs(np.asarray(individual, dtype=float)[None])[0])
         return (cost if np.isfinite(cost) else np.finfo(float).max,)
 
-    evaluate.problem = problem
+    evaluate.problem = problem  # type: ignore[attr-defined]  # a function attribute: batched_map knows its evaluator by it
     return evaluate
 
 
-def batched_map(problem) -> Callable:
+def batched_map(problem: Problem) -> Callable:
     """A ``toolbox.map``: the problem's own evaluator is applied to the whole population in one
     vectorised ``problem.costs`` call; any other function is mapped as the builtin ``map`` does."""
 

@@ -92,7 +92,9 @@ class Task:
         layout = self.problem.layout
         if not layout.dh_fixed:
             return {}
-        convention = self.robot.source.convention
+        source = self.robot.source
+        assert isinstance(source, dh.DHTable)  # DH parameters are fixed on an arm read from a DH table only (masked)
+        convention = source.convention
         base_x = dh.to_dh(self.problem.nominal, convention, samples=1)[0].base[:3, 0]
         before = dh.parameters(self.problem.nominal, convention, base_x)
         after = dh.parameters(self.calibrated_robot(x), convention, base_x)
@@ -122,22 +124,24 @@ def masked(c: ProblemConf, layout: Layout, info: dict[str, Any] | None = None, r
     for name in free or ():
         if str(name).strip().startswith("dh_"):
             raise ValueError(f"problem.free: {str(name).strip()!r}: DH parameters are named in problem.fixed only")
+    table: dh.DHTable | None = None  # the nominal DH table of the DH parameters named
     if dh_names:
-        from zrp_ga.model.dh import DHTable
-
         if robot is None:
             raise ValueError(f"problem.fixed: {dh_names[0]!r}: DH parameters can be fixed in simulated problems only "
                              "(problem=paper or multipose)")  # fmt: skip
-        if not isinstance(robot.source, DHTable):
+        if not isinstance(robot.source, dh.DHTable):
             raise ValueError(f"problem.fixed: {dh_names[0]!r} names a DH parameter, but the arm {robot.name!r} was not read from a "
                              "DH table file (robot.file: a DH or modified-DH table, or a preset); fix it by kind (u0_i, b0_i, ...)")  # fmt: skip
-        fixed = [k for k in fixed if not str(k).strip().startswith("dh_")]
+        table = robot.source
+        fixed = [k for k in fixed or () if not str(k).strip().startswith("dh_")]
     out = mask(layout, fixed, free, "problem")
-    if dh_names:
-        out = dh_mask(out, robot, robot.source.convention, dh_names, "problem")
+    if table is not None:
+        assert robot is not None  # checked with the table
+        out = dh_mask(out, robot, table.convention, dh_names, "problem")
     if info is not None and out.is_masked:
         info["fixed"] = fixed_summary(out) + list(out.dh_fixed)
     if info is not None and out.dh_fixed:
+        assert robot is not None and isinstance(robot.source, dh.DHTable)  # DH parameters are fixed on a DH table's arm only
         nominal = dh.parameters(robot, robot.source.convention)
         info["dh_fixed_nominal"] = {k: nominal[k] for k in out.dh_fixed}
     return out

@@ -141,7 +141,7 @@ def _uncertainty_entries(task: Task, x: Array, unc: Uncertainty, val_rms_m: floa
     data = p.data
     model = unc.predicted_rms_m(data.q, data.tools, noise=False)
     nominal_err = metrics.position_errors(p.layout, p.nominal, np.zeros(p.layout.size), data)
-    nominal_model = np.sqrt(max(np.mean(nominal_err**2) - 3 * unc.noise_m**2, 0.0))
+    nominal_model = np.sqrt(max(float(np.mean(nominal_err**2)) - 3 * unc.noise_m**2, 0.0))
     pred_cal = unc.predict(data.q[data.tools == 0])
     entry = {"noise_mm": unc.noise_m * 1e3, "noise_source": unc.source,
              "standard_errors": dict(zip(p.names, se.tolist())),

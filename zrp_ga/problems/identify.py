@@ -30,7 +30,7 @@ import dataclasses
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga.core.schema import Loss, Outliers, ProblemConf
 from zrp_ga.core.schema import Subspace as SubspaceChoice
@@ -72,6 +72,9 @@ class Noise:
                 "chi2_dof": self.chi2_dof}  # fmt: skip
 
 
+FirstFit = tuple[Array, float, int, int, Noise]  # a first fit's genome, cost, evaluations, directions and noise (_fit)
+
+
 @dataclasses.dataclass
 class Setup:
     """What :func:`prepare` found (module docstring): the problem's genome before the
@@ -101,21 +104,22 @@ class _Within:
 
     def __init__(self, problem: CalibrationProblem, N: Array) -> None:
         self.p, self.N = problem, N
-        self.lower = np.full(N.shape[1], -np.inf)
+        self.lower, self.upper = np.full(N.shape[1], -np.inf), np.full(N.shape[1], np.inf)
+        self.names = [f"z{k + 1}" for k in range(N.shape[1])]  # the directions' coefficients
         self.n_rows = problem.n_rows
         if isinstance(problem, RobustProblem):
             self.loss, self.loss_scale = problem.loss, problem.loss_scale
             self.plain_residual = lambda z: problem.plain_residual(N @ z)
             self.plain_jacobian = lambda z: problem.plain_jacobian(N @ z) @ N
 
-    def costs(self, Z: Array) -> Array:
+    def costs(self, Z: ArrayLike) -> Array:
         return self.p.costs(np.atleast_2d(Z) @ self.N.T)
 
-    def residual(self, z: Array) -> Array:
-        return self.p.residual(self.N @ z)
+    def residual(self, z: ArrayLike) -> Array:
+        return self.p.residual(self.N @ np.asarray(z, dtype=float))
 
-    def jacobian(self, z: Array) -> Array:
-        return self.p.jacobian(self.N @ z) @ self.N
+    def jacobian(self, z: ArrayLike) -> Array:
+        return self.p.jacobian(self.N @ np.asarray(z, dtype=float)) @ self.N
 
 
 def pose_rows(problem: CalibrationProblem) -> int:
@@ -201,6 +205,7 @@ def outliers(problem: CalibrationProblem, residual: Array, nz: Noise) -> list[di
     w = np.ones((data.M, 3)) if data.weights is None else data.weights
     dp = (residual[groups == "position"].reshape(data.M, 3)) / w
     size = np.linalg.norm(dp, axis=1)
+    assert data.lines is not None  # Measurements numbers its rows
     out = [{"row": int(k), "file": data.source, "line": int(data.lines[k]), "where": data.where(int(k)),
             "size_mm": float(size[k] * 1e3), "d2": float(d2[k])}
            for k in np.flatnonzero((d2 > limit) & (size > ROUND_OFF_M))]  # fmt: skip
@@ -245,16 +250,17 @@ def prepare(problem: CalibrationProblem, prior: Array, search_scale: float, c: P
     return dataclasses.replace(problem, layout=restricted, lower=-half, upper=half, unit_weight=0.0), setup
 
 
-def _fit(problem: CalibrationProblem, prior: Array) -> tuple[Array, float, int, int, Noise]:
+def _fit(problem: CalibrationProblem, prior: Array) -> FirstFit:
     """:func:`first_fit` and the :func:`noise` of its residual."""
     x, cost, nevals, rank = first_fit(problem, prior)
     return x, cost, nevals, rank, noise(problem, plain(problem, "residual", x)[:-problem.nominal.n], rank)
 
 
-def _robust(problem: CalibrationProblem, prior: Array, fit: tuple, c: ProblemConf) -> tuple[RobustProblem, tuple, float]:
+def _robust(problem: CalibrationProblem, prior: Array, fit: FirstFit, c: ProblemConf) -> tuple[RobustProblem, FirstFit, float]:
     """The robust problem (module docstring, step 4), its first fit and its loss scale: the
     stated one, or 1.345 x the robust noise of the last fit until it changes by less than 10%."""
     fields, scale = _fields(problem), None
+    robust: RobustProblem | None = None
     for _ in range(ROBUST_ROUNDS if c.loss_scale is None else 1):
         robust_sigma = max(fit[4].robust.values(), default=0.0)
         new = c.loss_scale or (LOSS_SCALE * robust_sigma if robust_sigma > 0 else None)
@@ -263,9 +269,10 @@ def _robust(problem: CalibrationProblem, prior: Array, fit: tuple, c: ProblemCon
         if scale is not None and abs(new / scale - 1) < 0.1:
             break
         scale = float(new)
-        problem = RobustProblem(**fields, loss=c.loss.value, loss_scale=scale)
-        fit = _fit(problem, prior)
-    return problem, fit, scale
+        robust = RobustProblem(**fields, loss=c.loss.value, loss_scale=scale)
+        fit = _fit(robust, prior)
+    assert robust is not None and scale is not None  # the first round builds it
+    return robust, fit, scale
 
 
 def _robust_rows(problem: CalibrationProblem, nz: Noise) -> Array | None:

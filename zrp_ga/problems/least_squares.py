@@ -15,14 +15,29 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from zrp_ga.core.problem import LeastSquares
 
 Array = NDArray[np.float64]
 X_SCALE = 1e-3  # m or rad per gene: 1 mm and 1 mrad weigh alike
+
+
+@runtime_checkable
+class RobustRows(Protocol):
+    """What a least-squares problem with a robust ``loss`` (scipy's name, or ``linear``) of scale
+    ``loss_scale`` has beside :class:`~zrp_ga.core.problem.LeastSquares`: its plain rows and
+    their Jacobian, which scipy fits with that loss (:class:`zrp_ga.problems.robust.RobustProblem`)."""
+
+    loss: str
+    loss_scale: float
+
+    def plain_residual(self, x: ArrayLike) -> Array: ...
+
+    def plain_jacobian(self, x: ArrayLike) -> Array: ...
 
 
 @dataclasses.dataclass
@@ -63,8 +78,9 @@ def levenberg_marquardt(
     initial = evaluate(x0[None])
     seen(x0, initial)
 
-    loss = getattr(problem, "loss", "linear")  # a robust problem (zrp_ga.problems.robust): scipy's loss on its plain rows
-    rows = problem.residual if loss == "linear" else problem.plain_residual
+    # a robust problem (zrp_ga.problems.robust): scipy's loss on its plain rows
+    robust_rows = problem if isinstance(problem, RobustRows) and problem.loss != "linear" else None
+    rows = problem.residual if robust_rows is None else robust_rows.plain_residual
 
     def residual(x: Array) -> Array:
         r = rows(x)
@@ -73,11 +89,11 @@ def levenberg_marquardt(
         seen(x, costs)
         return r
 
-    method = "lm" if problem.n_rows >= x0.size and loss == "linear" else "trf"
-    fun, jac, start = residual, lambda x: -(problem.jacobian(x) if loss == "linear" else problem.plain_jacobian(x)), x0
+    method = "lm" if problem.n_rows >= x0.size and robust_rows is None else "trf"
+    fun, jac, start = residual, lambda x: -(problem.jacobian(x) if robust_rows is None else robust_rows.plain_jacobian(x)), x0
     if method == "lm":
         fun, jac, start = _padded(residual, jac, x0.size, problem.n_rows)
-    robust = {} if loss == "linear" else {"loss": loss, "f_scale": problem.loss_scale}
+    robust = {} if robust_rows is None else {"loss": robust_rows.loss, "f_scale": robust_rows.loss_scale}
     fit = least_squares(fun, start, jac=jac, method=method, max_nfev=max_evals, x_scale=np.full(start.size, X_SCALE),
                         ftol=1e-15, xtol=1e-15, gtol=1e-15, **robust)  # fmt: skip
     return Fit(best[0], best[1], count[0], f"{method}: {fit.message}", initial)

@@ -105,6 +105,6 @@ class RobustProblem(CalibrationProblem):
                 u0, b0, R_h0 = m.for_tool(k).population_first()
                 R[:, rows], p[:, rows] = kinematics.forward_batch(u0, b0, R_h0, data.q[rows], self.nominal.prismatic)
             dp = data.p[None] - p
-            pose = dp if data.position_only else np.concatenate([error_model.pose_error(data.R[None], data.p[None], R, p)[0], dp], axis=2)
+            pose = dp if data.R is None else np.concatenate([error_model.pose_error(data.R[None], data.p[None], R, p)[0], dp], axis=2)
             unit = -0.5 * (m.length2.T - 1.0)  # (P, n)
         return np.concatenate([pose.reshape(P, -1), unit], axis=1) * self._row_weights[None]

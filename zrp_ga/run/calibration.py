@@ -30,7 +30,7 @@ import json
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -40,6 +40,15 @@ from zrp_ga.model.coverage import Coverage
 from zrp_ga.model.robot import ZRPRobot
 from zrp_ga.model.uncertainty import Uncertainty
 from zrp_ga.run import directory
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure, SubFigure
+
+    from zrp_ga.algorithms import Result
+    from zrp_ga.model.coverage import Assessment
+    from zrp_ga.problems import Task
 
 Array = NDArray[np.float64]
 ROBOT_FILE = "calibrated_robot.yaml"  # the arm in its base frame (what every run writes)
@@ -70,7 +79,7 @@ class Prediction:
     distance_ratio: Array | None = None
     orientations_fitted: bool = True
 
-    def table(self):
+    def table(self) -> pd.DataFrame:
         """One row per pose (a pandas DataFrame): ``x_mm, y_mm, z_mm``, the rotation vector
         ``rx_rad, ry_rad, rz_rad``, and the uncertainty and coverage columns where known."""
         import pandas as pd
@@ -95,21 +104,21 @@ class Calibration:
     loaded from (None: in memory only)."""
 
     robot: ZRPRobot
-    summary: dict = dataclasses.field(repr=False)
+    summary: dict[str, Any] = dataclasses.field(repr=False)
     arm: ZRPRobot = dataclasses.field(repr=False)
     nominal: ZRPRobot | None = None
     base: Array | None = dataclasses.field(default=None, repr=False)
     tools: dict[str, Array] = dataclasses.field(default_factory=dict, repr=False)
-    history_table: Any = dataclasses.field(default=None, repr=False)
-    result: Any = dataclasses.field(default=None, repr=False)
-    task: Any = dataclasses.field(default=None, repr=False)
+    history_table: pd.DataFrame | None = dataclasses.field(default=None, repr=False)
+    result: Result | None = dataclasses.field(default=None, repr=False)
+    task: Task | None = dataclasses.field(default=None, repr=False)
     directory: Path | None = None
-    _uncertainty: Any = dataclasses.field(default=False, repr=False)  # False: not computed yet
-    _coverage: Any = dataclasses.field(default=False, repr=False)
+    _uncertainty: Uncertainty | Literal[False] | None = dataclasses.field(default=False, repr=False)  # False: not computed yet
+    _coverage: Coverage | Literal[False] | None = dataclasses.field(default=False, repr=False)
 
     # --- made by a run ----------------------------------------------------------------------------
     @classmethod
-    def from_run(cls, task, result, summary: dict, out: str | Path | None = None) -> Calibration:
+    def from_run(cls, task: Task, result: Result, summary: dict[str, Any], out: str | Path | None = None) -> Calibration:
         """The calibration a run of ``task`` found (its ``result`` and ``summary``), written in
         ``out`` if it was given."""
         x = np.array([summary["best_genome"][k] for k in task.problem.names])
@@ -126,7 +135,7 @@ class Calibration:
         return np.array([genome[k] for k in names], dtype=float)
 
     @property
-    def history(self):
+    def history(self) -> pd.DataFrame | None:
         """One row per generation (pandas DataFrame), the columns of ``convergence.csv``."""
         return self.result.history if self.result is not None else self.history_table
 
@@ -174,7 +183,7 @@ class Calibration:
         return self._coverage
 
     # --- prediction ---------------------------------------------------------------------------------
-    def predict_error(self, q, tool: int = 0) -> dict[str, Any]:
+    def predict_error(self, q: ArrayLike, tool: int = 0) -> dict[str, Any]:
         """Predicted 1-sigma errors of the calibrated arm at joint values q (M, n) (the model's
         units: rad, m; measured data: as read from the file, converted), each (M,):
         ``position_mm`` (the identified combinations' covariance and the prior of those left at
@@ -201,7 +210,7 @@ class Calibration:
                 "outside": None if where is None else where.outside,
                 "distance_ratio": None if where is None else where.ratio}  # fmt: skip
 
-    def _coverage_of(self, q):
+    def _coverage_of(self, q: ArrayLike) -> Assessment | None:
         c = self.coverage
         return None if c is None else c.assess(q)
 
@@ -269,14 +278,18 @@ class Calibration:
                           pos, rot, None if where is None else where.outside, None if where is None else where.ratio,
                           self.orientations)  # fmt: skip
 
-    def plot(self, ax=None):
+    def plot(self, ax: Axes | None = None) -> Figure | SubFigure:
         """The convergence curve (best cost per evaluation) on ``ax``, or on a new figure that is
-        returned without being shown (``matplotlib.figure.Figure``: no backend is chosen)."""
+        returned without being shown (``matplotlib.figure.Figure``: no backend is chosen); the
+        figure ``ax`` is on (a ``SubFigure`` for an ``ax`` in one). ValueError without a
+        convergence history (a loaded calibration without ``convergence.csv``)."""
         if ax is None:
             from matplotlib.figure import Figure
 
             ax = Figure(figsize=(6, 4)).subplots()
         h = self.history
+        if h is None:
+            raise ValueError("plot: this calibration has no convergence history (no convergence.csv where it was loaded from)")
         ax.semilogy(h["nevals"], h["best"], marker=".")
         ax.set_xlabel("evaluations")
         ax.set_ylabel("best cost")
@@ -302,7 +315,7 @@ class Calibration:
             out.mkdir(parents=True, exist_ok=True)
             with directory.locked(out):
                 if self.task is not None and self.result is not None:
-                    self._write(out)
+                    self._write(out, self.task, self.result)
                 elif self.directory is not None:
                     for f in sorted(self.directory.iterdir()):
                         if f.is_file() and f.name not in NOT_COPIED and not f.name.endswith(".tmp"):
@@ -314,12 +327,12 @@ class Calibration:
         self.directory = out
         return out
 
-    def _write(self, out: Path) -> None:
+    def _write(self, out: Path, task: Task, result: Result) -> None:
         from zrp_ga.run import callbacks, summary
 
         written = copy.deepcopy(self.summary)
-        callbacks.write_rows(out / directory.CONVERGENCE, self.result.rows)
-        summary.write(out, self.task, self.result, written, self.x)
+        callbacks.write_rows(out / directory.CONVERGENCE, result.rows)
+        summary.write(out, task, result, written, self.x)
         self.summary.setdefault("calibrated_robot", written.get("calibrated_robot"))
         directory.write_status(out, "done")
 
@@ -430,7 +443,7 @@ def _summary_damage(path: Path) -> str | None:
     return None if isinstance(s, dict) else f"{path / directory.SUMMARY} is not a run's summary (a JSON mapping)"
 
 
-def _nominal(s: dict, path: Path) -> ZRPRobot | None:
+def _nominal(s: dict[str, Any], path: Path) -> ZRPRobot | None:
     """The nominal arm of a run's summary (``robot_model``); its robot file or preset when that
     still gives the same arm (its DH table or URDF then shapes the exports)."""
     if "robot_model" not in s:

@@ -69,7 +69,7 @@ def load(path: str | Path) -> dict[str, Any]:
 UNCHECKED = ("progress", "resume")  # settings that change no result (a resumed run takes them from its command line)
 
 
-def _digests(config: dict) -> dict[str, str]:
+def _digests(config: dict[str, Any]) -> dict[str, str]:
     """Each setting of ``config`` (dotted key) with a digest of its value as JSON."""
     import hashlib
 
@@ -86,7 +86,7 @@ def _digests(config: dict) -> dict[str, str]:
     return out
 
 
-def edited(state: dict) -> list[str]:
+def edited(state: dict[str, Any]) -> list[str]:
     """The settings of the checkpoint ``state``'s config that are not those it was written with
     (none for a checkpoint written before the digests)."""
     recorded, config = state.get("config_digests"), state.get("config")

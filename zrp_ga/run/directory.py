@@ -345,11 +345,11 @@ def _alive(pid: Any) -> bool:
     return True
 
 
-def _sweep_difference(mine: dict, theirs: dict) -> str:
+def _sweep_difference(mine: dict[str, Any], theirs: dict[str, Any]) -> str:
     """What differs between two sweeps' records (:func:`claim`), said in a few words."""
 
-    def by_key(overrides: list) -> dict:
-        return dict(o.split("=", 1) if "=" in o else (o, "") for o in overrides or [])
+    def by_key(overrides: list[str]) -> dict[str, str]:
+        return {k: v for k, _, v in (o.partition("=") for o in overrides or [])}
 
     a, b = by_key(mine["overrides"]), by_key(theirs.get("overrides") or [])
     said = [f"{k}={a[k]} here, {k}={b[k]} there" if k in a and k in b else f"{k}={a[k]} here, not there" if k in a
