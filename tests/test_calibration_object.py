@@ -320,3 +320,14 @@ def test_simulated_files_read_by_zrp_ga_give_the_calibration_calibrate_gives(cel
     q = rng.uniform(-1.0, 1.0, (10, 6))
     np.testing.assert_allclose(back.predict(q).p, cal.predict(q).p, rtol=0, atol=1e-12)
     np.testing.assert_allclose(back.predict(q).position_mm, cal.predict(q).position_mm, rtol=1e-9)
+
+
+def test_plot_without_a_convergence_history_says_so():
+    """A calibration without its convergence history (loaded from files without
+    ``convergence.csv``) cannot be plotted: one ValueError naming what is missing."""
+    from zrp_ga.io import presets
+    from zrp_ga.run.calibration import Calibration
+
+    arm = presets.get("puma560")
+    with pytest.raises(ValueError, match=r"^plot: this calibration has no convergence history"):
+        Calibration(arm, {"instance": "puma560"}, arm).plot()

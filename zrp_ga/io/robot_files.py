@@ -144,11 +144,12 @@ class _Yaml:
         m = where.start_mark if isinstance(where, yaml.Node) else where
         return ValueError(_one_line(f"{self.path}, line {m.line + 1}, column {m.column + 1}: {message}"))
 
-    def mapping(self, node: yaml.Node, what: str, known: tuple[str, ...] | None = None) -> dict[str, yaml.Node]:
-        """Key -> value node of a mapping node; unknown (if ``known`` is given) or repeated keys refused."""
+    def mapping(self, node: yaml.Node, what: str, known: tuple[str, ...] | None = None) -> dict[str | None, yaml.Node]:
+        """Key -> value node of a mapping node; unknown (if ``known`` is given) or repeated keys
+        refused (None: a key that is not text, where ``known`` is not given)."""
         if not isinstance(node, yaml.MappingNode):
             raise self.error(node, f"{what}: expected a mapping (key: value)")
-        out: dict[str, yaml.Node] = {}
+        out: dict[str | None, yaml.Node] = {}
         for key_node, value in node.value:
             key = key_node.value if isinstance(key_node, yaml.ScalarNode) else None
             if known is not None and key not in known:
@@ -158,7 +159,7 @@ class _Yaml:
             out[key] = value
         return out
 
-    def need(self, mapping: dict[str, yaml.Node], node: yaml.Node, key: str, what: str) -> yaml.Node:
+    def need(self, mapping: dict[str | None, yaml.Node], node: yaml.Node, key: str, what: str) -> yaml.Node:
         """The value of a required key."""
         if key not in mapping:
             raise self.error(node, f"{what}: missing key {key!r}")
@@ -217,7 +218,7 @@ def _dh_table(doc: _Yaml) -> DHTable:
             raise doc.error(nodes.value[i], f"joint {i + 1}: name {name!r} is joint {names.index(name) + 1}'s already")
     limits = None
     if any(row.limits is not None for row in rows):
-        limits = [DEFAULT_LIMITS[row.type] if row.limits is None else row.limits for row in rows]
+        limits = np.array([DEFAULT_LIMITS[row.type] if row.limits is None else row.limits for row in rows], dtype=float)
     poses = {key: _pose(doc, top[key], key, length, angle) for key in ("base", "tool") if key in top}
     name = doc.text(top["name"], "name") if "name" in top else doc.path.stem
     a, alpha, d, theta = (np.array([getattr(row, k) for row in rows]) for k in ("a", "alpha", "d", "theta"))
@@ -288,8 +289,8 @@ def _pose(doc: _Yaml, node: yaml.Node, what: str, length: float, angle: float) -
     if "quaternion_xyzw" in keys:
         q = doc.numbers(keys["quaternion_xyzw"], f"{what}: quaternion_xyzw", 4, 1.0, 2.0)
         if abs(np.linalg.norm(q) - 1.0) > 1e-3:
-            length = np.linalg.norm(q)
-            raise doc.error(keys["quaternion_xyzw"], f"{what}: quaternion_xyzw has length {length:.6g}, not 1")
+            norm = np.linalg.norm(q)
+            raise doc.error(keys["quaternion_xyzw"], f"{what}: quaternion_xyzw has length {norm:.6g}, not 1")
         T[:3, :3] = Rotation.from_quat(q).as_matrix()
     return T
 
@@ -331,29 +332,30 @@ def dh_to_yaml(
     L, A = LENGTH_UNITS[length], ANGLE_UNITS[angle]
     names = table.joint_names or tuple(f"joint_{i + 1}" for i in range(table.n))
     lines = [f"# {line}" if line else "#" for line in comment.splitlines()]
-    if table.beta.any():
+    if table.betas.any():
         link = {"dh": "Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)", "mdh": "Rx(alpha) Tx(a) Ry(beta) Rz(theta) Tz(d)"}
         lines.append(f"# Rows with beta are Hayati rows (nearly parallel axes): A = {link[table.convention]}")
     head = {"name": table.name, "convention": table.convention, "units": {"length": length, "angle": angle}}
     lines += [_yaml_text(head).rstrip(), "joints:"]
     n = table.n
-    columns = [table.a / L, table.alpha / A, table.d / L, table.theta / A, table.beta / A]
+    columns = [table.a / L, table.alpha / A, table.d / L, table.theta / A, table.betas / A]
     if table.limits is not None:
         columns += list((np.asarray(table.limits) / np.array([[A if kind == "R" else L] for kind in table.joint_types])).T)
     nominal = (None, None) if near is None else (so3.rpy(near.base[:3, :3]), so3.rpy(near.tool[:3, :3]))
     poses = [(T[:3, 3] / L, rpy_near(T[:3, :3], r) / A) for T, r in zip((table.base, table.tool), nominal)]
     numbers = _short(np.concatenate(columns + [v for pose in poses for v in pose]))  # all at once
+    assert isinstance(numbers, list)  # an array's numbers
     a, alpha, d, theta, beta = (numbers[k * n:(k + 1) * n] for k in range(5))
     if table.limits is not None:
         limits = list(zip(numbers[5 * n:6 * n], numbers[6 * n:7 * n]))
     for i, kind in enumerate(table.joint_types):
         row = [_flow_text("name", names[i]), _flow_text("type", kind)]
         row += [f"{k}: {_yaml_float(v)}" for k, v in (("a", a[i]), ("alpha", alpha[i]), ("d", d[i]), ("theta", theta[i]))]
-        if table.beta[i]:
+        if table.betas[i]:
             row.append(f"beta: {_yaml_float(beta[i])}")
         if table.limits is not None:
             row.append(f"limits: [{', '.join(map(_yaml_float, limits[i]))}]")
-        lines.append("  - {" + ", ".join(row) + "}" + ("  # Hayati row" if table.beta[i] else ""))
+        lines.append("  - {" + ", ".join(row) + "}" + ("  # Hayati row" if table.betas[i] else ""))
     rest = numbers[len(numbers) - 12:]
     pose_text = {key: {"xyz": rest[6 * k:6 * k + 3], "rpy": rest[6 * k + 3:6 * k + 6]} for k, key in enumerate(("base", "tool"))}
     lines.append(_yaml_text(pose_text).rstrip())
@@ -431,7 +433,7 @@ def _block_mapping(data: dict, indent: int, lines: list[str]) -> None:
 def _flow(head: str, items: list | dict, indent: int) -> list[str]:
     """The lines of a flow sequence or mapping of scalars after ``head``, wrapped as PyYAML does."""
     is_map = isinstance(items, dict)
-    texts = [f"{_plain(k)}: {_scalar(v)}" for k, v in items.items()] if is_map else [_scalar(v) for v in items]
+    texts = [f"{_plain(k)}: {_scalar(v)}" for k, v in items.items()] if isinstance(items, dict) else [_scalar(v) for v in items]
     lines, line = [], head + (" {" if is_map else " [")
     for k, text in enumerate(texts):
         if k:
@@ -513,7 +515,7 @@ _NEAREST_FIRST = sorted(range(_STEPS.size), key=lambda j: (abs(_STEPS[j]), j))  
 
 
 # --- ZRP YAML ----------------------------------------------------------------------------------
-def _zrp_robot(doc: _Yaml, top: dict[str, yaml.Node]) -> ZRPRobot:
+def _zrp_robot(doc: _Yaml, top: dict[str | None, yaml.Node]) -> ZRPRobot:
     """A ZRP robot file (:meth:`ZRPRobot.to_yaml`), errors at the offending key's line."""
     data = yaml.constructor.SafeConstructor().construct_document(doc.root)
     try:
@@ -600,8 +602,8 @@ def write_all(
             header.append(f"In the nominal table's conventions (row = nominal + correction; {paths[f'{convention}_corrections'].name})")
             write_csv(paths[f"{convention}_corrections"], corrections_rows(table, like[convention]))
         dh_to_yaml(table, paths[convention], comment="\n".join(header), near=None if like is None else like[convention])
-        if table.beta.any():
-            rows = ", ".join(str(i + 1) for i in np.flatnonzero(table.beta))
+        if table.betas.any():
+            rows = ", ".join(str(i + 1) for i in np.flatnonzero(table.betas))
             to_log_files(log, logging.INFO, [f"{paths[convention].name}: row(s) {rows} use Hayati's parameterisation (nearly "
                                              "parallel axes; the file's notes say why)"])  # a note on a file: the log, not the console
     paths["zrp"].write_text(_yaml_text(full.to_dict()))  # full.to_yaml(path), the same text: the terms included
@@ -664,7 +666,7 @@ def corrections_rows(table: DHTable, nominal: DHTable) -> list[dict]:
     rows = []
     for i in range(table.n):
         for kind in ("a", "alpha", "d", "theta", "beta"):
-            if kind == "beta" and not (table.beta[i] or nominal.beta[i]):
+            if kind == "beta" and not (table.betas[i] or nominal.betas[i]):
                 continue
             f, unit = scale[kind]
             c = change[kind][i] * f

@@ -45,7 +45,7 @@ import functools
 import logging
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -54,6 +54,9 @@ from scipy.spatial.transform import Rotation
 from zrp_ga.model import so3
 from zrp_ga.model.dh import DHTable
 from zrp_ga.model.robot import DEFAULT_LIMITS, MAX_ANGLE_RAD, MAX_LENGTH_M, ZRPRobot
+
+if TYPE_CHECKING:
+    from lxml import etree
 
 Array = NDArray[np.float64]
 log = logging.getLogger("zrp_ga")
@@ -85,11 +88,11 @@ class _Joint(NamedTuple):
     upper: float | None
     mimic: str | None
     line: int
-    element: object  # the lxml element, for writing back
+    element: etree._Element  # the lxml element, for writing back
 
 
 class _Urdf(NamedTuple):
-    root: object  # lxml root element
+    root: etree._Element  # lxml root element
     name: str
     links: list[str]
     joints: list[_Joint]
@@ -214,11 +217,12 @@ def _joint(where: str, element, name: str, kind: str, parent: str, child: str) -
             raise ValueError(f"{where}: <{tag} {attr}={text!r}>: not finite or absurd (beyond {bound:g} m or rad)")
         values[tag, attr] = np.array(numbers)
     mimic = element.find("mimic")
+    lower, upper = (float(values[k][0]) if k in values else None for k in (("limit", "lower"), ("limit", "upper")))
     return _Joint(
         name, kind, parent, child,
         _transform(values.get(("origin", "xyz"), np.zeros(3)), values.get(("origin", "rpy"), np.zeros(3))),
         values.get(("axis", "xyz"), np.array([1.0, 0.0, 0.0])),
-        *(float(values[k][0]) if k in values else None for k in (("limit", "lower"), ("limit", "upper"))),
+        lower, upper,
         None if mimic is None else mimic.get("joint", ""), element.sourceline, element,
     )
 
@@ -237,14 +241,16 @@ def _chain(path: Path, urdf: _Urdf, base_link: str | None, tip_link: str | None)
     roots = [k for k in links if k not in by_child]
     base = base_link if base_link is not None else _only(path, roots, "root links", "base_link")
     _known(path, base, links, "base_link")
-    below, todo = [], [base]
+    below: list[str] = []
+    todo = [base]
     while todo and len(below) <= len(links):
         below.append(todo.pop())
         todo += children[below[-1]]
     leaves = [k for k in below if not children[k]]
     tip = tip_link if tip_link is not None else _only(path, leaves, f"leaf links below {base!r}", "tip_link")
     _known(path, tip, links, "tip_link")
-    chain, link = [], tip
+    chain: list[_Joint] = []
+    link = tip
     while link != base:
         if link not in by_child or len(chain) > len(urdf.joints):
             raise ValueError(f"{path}: tip_link {tip!r} is not below base_link {base!r}")
@@ -307,8 +313,8 @@ def _zrp(path: Path, name: str, chain: list[_Joint], base: str, tip: str, source
     b0 = np.diff(np.vstack([np.zeros(3), *points, T[:3, 3]]), axis=0)
     try:
         return ZRPRobot(
-            u0=axes, b0=b0, R_h0=T[:3, :3], joint_types="".join(types), name=name, joint_names=names,
-            limits=limits, normalize=True, source=source,
+            u0=np.array(axes), b0=b0, R_h0=T[:3, :3], joint_types="".join(types), name=name, joint_names=tuple(names),
+            limits=np.array(limits, dtype=float), normalize=True, source=source,
         )
     except ValueError as exc:  # not expected after the checks above; named all the same
         raise ValueError(_one_line(f"{path}: {exc}")) from None
@@ -382,7 +388,8 @@ def _patched(robot: ZRPRobot, source: URDFSource, base: Array | None, tool: Arra
     hand = _pose(robot.R_h0, points[-1])
     last = movable[-1]
     hand_at = last + 1 if last + 1 < len(chain) else None  # the fixed joint carrying the hand
-    nominal, T, added, hand_link = np.eye(4), np.eye(4), [], source.tip_link
+    nominal, T, hand_link = np.eye(4), np.eye(4), source.tip_link
+    added: list[etree._Element] = []
     for m, joint in enumerate(chain):
         nominal = nominal @ joint.origin
         if m == hand_at:
@@ -487,7 +494,7 @@ def _hand_on_last_axis(joint: _Joint, hand: Array, point: Array, u: Array, urdf:
                etree.Element("link", name=name)]  # fmt: skip
 
 
-def _set_origin(joint: _Joint, T: Array) -> None:
+def _set_origin(joint: _Joint, T: NDArray[np.floating]) -> None:
     """Write T into the joint's <origin>, keeping the text of the parts that did not change (1e-14)."""
     from lxml import etree
 
@@ -532,6 +539,7 @@ def _append(root, elements: list) -> None:
             last.tail = indent
         root.append(element)
         last = element
+    assert last is not None  # elements is not empty
     last.tail = "\n"
 
 
@@ -645,4 +653,4 @@ def reads_small(R: ArrayLike, near: ArrayLike, factor: float = 10.0) -> bool:
     rotated z axis."""
     R0 = Rotation.from_euler("xyz", near).as_matrix()
     angle = np.linalg.norm(Rotation.from_matrix(R0.T @ np.asarray(R)).as_rotvec())
-    return float(np.abs(rpy_near(R, near) - np.asarray(near)).max()) <= factor * angle + 1e-12
+    return bool(float(np.abs(rpy_near(R, near) - np.asarray(near)).max()) <= factor * angle + 1e-12)

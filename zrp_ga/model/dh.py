@@ -111,14 +111,19 @@ class DHTable:
         """Number of joints."""
         return len(self.joint_types)
 
+    @property
+    def betas(self) -> Array:
+        """``beta`` (n,) rad as the table holds it: zeros for a table given none."""
+        assert self.beta is not None  # __post_init__ (and _table) set it
+        return self.beta
+
     def to_robot(self) -> ZRPRobot:
         """The ZRP description (exact: docs/model.md, section 1): the joint axes are the z axes
         of the frames at q = 0 (frames 0..n-1 for DH, 1..n for modified DH), through their origins."""
-        extra = dict(name=self.name, joint_names=self.joint_names, limits=self.limits)
-        if not self.beta.any():  # a plain table: the robot's own DH reading
+        if not self.betas.any():  # a plain table: the robot's own DH reading
             make = ZRPRobot.from_dh if self.convention == "dh" else ZRPRobot.from_mdh
             return make(d=self.d, a=self.a, alpha=self.alpha, offset=self.theta, joint_types=self.joint_types,
-                        tool=self.tool, base=self.base, **extra)  # fmt: skip
+                        tool=self.tool, base=self.base, name=self.name, joint_names=self.joint_names, limits=self.limits)  # fmt: skip
         frames = [self.base]
         for i in range(self.n):
             frames.append(frames[-1] @ _row_link(self.convention, self.row(i)))
@@ -127,11 +132,12 @@ class DHTable:
         points = np.array([F[:3, 3] for F in axis_frames] + [end[:3, 3]])
         b0 = np.diff(np.vstack([np.zeros(3), points]), axis=0)
         u0 = np.array([F[:3, 2] for F in axis_frames])
-        return ZRPRobot(u0=u0, b0=b0, R_h0=end[:3, :3], joint_types=self.joint_types, normalize=True, **extra)
+        return ZRPRobot(u0=u0, b0=b0, R_h0=end[:3, :3], joint_types=self.joint_types, normalize=True, name=self.name,
+                        joint_names=self.joint_names, limits=self.limits)  # fmt: skip
 
     def row(self, i: int) -> tuple[float, float, float, float, float]:
         """Row i (from 0): (a, alpha, d, theta, beta)."""
-        return self.a[i], self.alpha[i], self.d[i], self.theta[i], self.beta[i]
+        return self.a[i], self.alpha[i], self.d[i], self.theta[i], self.betas[i]
 
     def link(self, i: int) -> Array:
         """(4, 4) transform of row i (from 0) at q = 0, frame i-1 to frame i (module docstring)."""
@@ -146,8 +152,8 @@ class DHTable:
         for i in range(self.n):  # the fixed one of theta and d a number, its link factor one matrix
             theta = self.theta[i] + Q[:, i] if revolute[i] else self.theta[i] + 0.0
             d = self.d[i] + 0.0 if revolute[i] else self.d[i] + Q[:, i]
-            if self.beta[i]:
-                T = T @ _link(self.convention, theta, d, self.a[i], self.alpha[i], self.beta[i])
+            if self.betas[i]:
+                T = T @ _link(self.convention, theta, d, self.a[i], self.alpha[i], self.betas[i])
             else:
                 T = T @ _plain_link(self.convention, theta, d, self.a[i], self.alpha[i], len(Q))
         T = T @ self.tool
@@ -265,7 +271,8 @@ def _table(convention: str, a: Array, alpha: Array, d: Array, theta: Array, robo
     read off the checked arm ``robot``: the fields as DHTable makes them (float arrays, read-only),
     without checking them again through a ZRP robot of their own (a third of to_dh's time).
     Rows that are not finite are refused all the same."""
-    values = {"a": a, "alpha": alpha, "d": d, "theta": theta, "beta": beta, "base": base, "tool": np.eye(4)}
+    values: dict[str, Array | None] = {"a": a, "alpha": alpha, "d": d, "theta": theta, "beta": beta, "base": base,
+                                       "tool": np.eye(4)}  # fmt: skip
     values["limits"] = None if robot.limits is None else robot.limits
     table = object.__new__(DHTable)
     for field, value in values.items():
@@ -275,9 +282,9 @@ def _table(convention: str, a: Array, alpha: Array, d: Array, theta: Array, robo
                 raise ValueError(f"{field}: expected finite numbers, got {value!r}")
             value.setflags(write=False)
         object.__setattr__(table, field, value)
-    for field, value in (("convention", convention), ("joint_types", robot.joint_types), ("name", robot.name),
-                         ("joint_names", robot.joint_names)):  # fmt: skip
-        object.__setattr__(table, field, value)
+    for field, setting in (("convention", convention), ("joint_types", robot.joint_types), ("name", robot.name),
+                           ("joint_names", robot.joint_names)):  # fmt: skip
+        object.__setattr__(table, field, setting)
     return table
 
 
@@ -409,7 +416,7 @@ def _like_parallel(like: DHTable, frames: list[Array], i: int, tol: float) -> bo
     Hayati row, or axes within ``tol`` of parallel (DH: the z axes of frames i and i+1; modified
     DH: of frames i+1 and i+2)."""
     k = i if like.convention == "dh" else i + 1
-    return bool(like.beta[k] != 0.0) or _line_angle(frames[k][:3, 2], frames[k + 1][:3, 2]) < tol
+    return bool(like.betas[k] != 0.0) or _line_angle(frames[k][:3, 2], frames[k + 1][:3, 2]) < tol
 
 
 def onto_axis(F: Array, point: Array, u: Array) -> Array:
@@ -459,9 +466,10 @@ def _walk_like(
     if dh:
         T = onto_axis(nominal[0], points[0], u0[0])
     else:  # row 1 reaches axis 1 as the nominal's does: the base carries the correction
-        reach = _row_link("mdh", (like.a[0], like.alpha[0], 0.0, 0.0, like.beta[0]))
+        reach = _row_link("mdh", (like.a[0], like.alpha[0], 0.0, 0.0, like.betas[0]))
         T = onto_axis(nominal[0] @ reach, points[0], u0[0]) @ np.linalg.inv(reach)
-    base, frames, rows, far = T, [T], [], {}
+    base, frames, rows = T, [T], []
+    far: dict[int, float] = {}
     for i in range(n):
         nom = like.row(i)
         row = (_like_dh_row if dh else _like_mdh_row)(T, i, points, u0, target, like, nominal, tol, far)
@@ -477,7 +485,7 @@ def _like_dh_row(T: Array, i: int, points: Array, u0: Array, target: Array, like
     n = len(u0)
     o, z, x_nominal = T[:3, 3], T[:3, 2], nominal[i + 1][:3, 0]
     if i == n - 1:  # the DH frame nearest the target: Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta_nominal)
-        return (*_dh_row(np.linalg.inv(T) @ target @ _rot(1, -like.beta[i])), like.beta[i])
+        return (*_dh_row(np.linalg.inv(T) @ target @ _rot(1, -like.betas[i])), like.betas[i])
     if _like_parallel(like, nominal, i, tol):  # Hayati, d held: the plane through o + d z
         start = o + like.d[i] * z
         cross = _crossing(start, z, points[i + 1], u0[i + 1])
@@ -497,7 +505,7 @@ def _like_mdh_row(T: Array, i: int, points: Array, u0: Array, target: Array, lik
     (:func:`_walk_like`): reach axis i, then place frame i+1 on it."""
     n = len(u0)
     if i == 0:
-        reach = (like.a[0], like.alpha[0], 0.0, 0.0, like.beta[0])
+        reach = (like.a[0], like.alpha[0], 0.0, 0.0, like.betas[0])
     else:
         reach = _mdh_reach(T, points[i], u0[i], hayati=_like_parallel(like, nominal, i - 1, tol))
     M = T @ _row_link("mdh", reach)
@@ -766,7 +774,7 @@ def _rot(axis: int, angle: Array | float) -> Array:
         T[j, j] = T[k, k] = c
         T[k, j], T[j, k] = s, -s
         return T
-    T = _eyes(len(angle))
+    T = _eyes(np.shape(angle)[0])
     T[:, j, j] = T[:, k, k] = c
     T[:, k, j], T[:, j, k] = s, -s
     return T
@@ -781,7 +789,7 @@ def _shift(axis: int, length: Array | float) -> Array:
         T = _EYE.copy()
         T[axis, 3] = length
         return T
-    T = _eyes(len(length))
+    T = _eyes(np.shape(length)[0])
     T[:, axis, 3] = length
     return T
 
@@ -792,13 +800,13 @@ def _hayati_notes(robot: ZRPRobot, table: DHTable, far: dict[int, float]) -> tup
     names = robot.joint_names or [f"joint_{i + 1}" for i in range(robot.n)]
     notes = []
     for i, away in sorted(far.items()):
-        if table.beta[i] == 0.0:
+        if table.betas[i] == 0.0:
             continue  # exactly parallel: a plain DH row
         k = i if table.convention == "dh" else i - 1  # the pair of axes k+1, k+2 (from 1)
         angle = np.degrees(_line_angle(robot.u0[k], robot.u0[k + 1]))
         normal = f"their common normal lies {away:.3g} m along axis {k + 1}" if np.isfinite(away) else "parallel"
         notes.append(
-            f"row {i + 1} ({names[i]}): Hayati's parameterisation (beta = {np.degrees(table.beta[i]):.4g} deg about y, "
+            f"row {i + 1} ({names[i]}): Hayati's parameterisation (beta = {np.degrees(table.betas[i]):.4g} deg about y, "
             f"d{'' if table.convention == 'dh' else f'_{k + 1}'} = 0): axes {k + 1} and {k + 2} are {angle:.3g} deg "
             f"from parallel ({normal})"
         )
@@ -834,8 +842,8 @@ def _reference(robot: ZRPRobot, samples: int, seed: int) -> tuple[Array, Array, 
 def _samples(limits: bytes, n: int, samples: int, seed: int) -> Array:
     """The joint samples of :func:`_reference` for the joint limits ``limits`` (the bytes of an
     (n, 2) float array), read-only: the runs of a sweep share their arm's limits."""
-    limits = np.frombuffer(limits, dtype=float).reshape(n, 2)
-    q = np.random.default_rng(seed).uniform(limits[:, 0], limits[:, 1], size=(max(samples, 1), n))
+    lo_hi = np.frombuffer(limits, dtype=float).reshape(n, 2)
+    q = np.random.default_rng(seed).uniform(lo_hi[:, 0], lo_hi[:, 1], size=(max(samples, 1), n))
     q[0] = 0.0
     q.setflags(write=False)
     return q

@@ -164,10 +164,10 @@ class ZRPRobot:
     @classmethod
     def from_dh(
         cls,
-        d: Sequence[float],
-        a: Sequence[float],
-        alpha: Sequence[float],
-        offset: Sequence[float] | None = None,
+        d: Sequence[float] | NDArray[np.float64],
+        a: Sequence[float] | NDArray[np.float64],
+        alpha: Sequence[float] | NDArray[np.float64],
+        offset: Sequence[float] | NDArray[np.float64] | None = None,
         joint_types: str | None = None,
         tool: ArrayLike | None = None,
         base: ArrayLike | None = None,
@@ -194,10 +194,10 @@ class ZRPRobot:
     @classmethod
     def from_mdh(
         cls,
-        d: Sequence[float],
-        a: Sequence[float],
-        alpha: Sequence[float],
-        offset: Sequence[float] | None = None,
+        d: Sequence[float] | NDArray[np.float64],
+        a: Sequence[float] | NDArray[np.float64],
+        alpha: Sequence[float] | NDArray[np.float64],
+        offset: Sequence[float] | NDArray[np.float64] | None = None,
         joint_types: str | None = None,
         tool: ArrayLike | None = None,
         base: ArrayLike | None = None,

@@ -30,6 +30,7 @@ from zrp_ga.model.robot import ZRPRobot
 
 if TYPE_CHECKING:
     from zrp_ga.model.error_model import IdentifiabilityReport
+    from zrp_ga.problems.identify import Setup
 
 Array = NDArray[np.float64]
 
@@ -49,7 +50,7 @@ class Task:
     robot: ZRPRobot
     info: dict[str, Any] = dataclasses.field(default_factory=dict)
     warnings: list[str] = dataclasses.field(default_factory=list)
-    setup: Any = None  # what the problem's set-up found (zrp_ga.problems.identify.Setup; None: none)
+    setup: Setup | None = None  # what the problem's set-up found (None: none)
     if_worse: str | None = None  # problem.if_worse: nominal or keep (None: the kind's nominal_if_worse)
     nominal_if_worse: ClassVar[bool] = False
 
@@ -71,7 +72,10 @@ class Task:
     def identifiability(self) -> IdentifiabilityReport:
         """The identifiability report (:func:`zrp_ga.model.error_model.identifiability`) of the
         calibration poses at the nominal arm, over :attr:`layout`'s parameters."""
-        return (self.problem if self.setup is None else self.setup.problem).identifiability()
+        if self.setup is None:
+            return self.problem.identifiability()
+        assert self.setup.problem is not None  # prepare() gives it
+        return self.setup.problem.identifiability()
 
     def calibrated_robot(self, x: Array) -> ZRPRobot:
         p = self.problem

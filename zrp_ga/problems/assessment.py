@@ -93,6 +93,7 @@ def identified(task: Task, x: Array) -> dict[str, Any]:
         return entry
     n = task.problem.nominal.n
     arm = setup.layout.robot(task.problem.nominal, setup.x)
+    assert setup.problem is not None  # prepare() gives it
     U = setup.problem.J_nominal[-n:]
     entry.update(rule=s.rule(), max_se=s.max_se, rank=s.rank, combinations=len(s.singular_values),
                  dropped=len(s.singular_values) - s.rank,
@@ -108,6 +109,7 @@ def _at_result(task: Task, x: Array) -> dict[str, Any]:
     angle (rad) between them. (Directions near the noise threshold, rule 2, come and go with
     any refit; these do not unless the fit moved the arm where other combinations are seen.)"""
     setup = task.setup
+    assert setup is not None and setup.problem is not None  # called by identified() on a task with a set-up
     base, n = setup.problem, task.problem.nominal.n
 
     def seen(at: Array) -> subspace.Subspace | None:

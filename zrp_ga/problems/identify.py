@@ -36,6 +36,7 @@ from zrp_ga.core.schema import Loss, Outliers, ProblemConf
 from zrp_ga.core.schema import Subspace as SubspaceChoice
 from zrp_ga.model import subspace as sub
 from zrp_ga.model.cost import CalibrationProblem
+from zrp_ga.model.layout import Layout
 from zrp_ga.problems.least_squares import levenberg_marquardt
 from zrp_ga.problems.robust import RobustProblem
 
@@ -83,7 +84,7 @@ class Setup:
     (``exact_rank``); the first fit's genome ``x`` (``layout``'s) and cost; the noise; the
     outliers (row, file, line, size m, d^2) and whether they were dropped, and what changed."""
 
-    layout: Any
+    layout: Layout
     prior: Array
     subspace: sub.Subspace | None
     exact_rank: int

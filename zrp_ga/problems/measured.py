@@ -98,6 +98,7 @@ class MeasuredTask(Task):
 
     def report(self, x: np.ndarray) -> dict[str, Any]:
         mm = lambda e: {k: v * 1e3 if k != "poses" else v for k, v in metrics.summary(e).items()}
+        assert self.registration is not None  # from_measurements registers every measured task
         return {
             **({"residual_model": self.residual.hyperparameters()} if self.residual is not None else {}),
             "registration": self.registration.to_dict(),
@@ -110,6 +111,7 @@ class MeasuredTask(Task):
         (4, 4) in the hand frame, so that ``base @ arm(q) @ tool_k`` is tool k's calibrated pose
         in the instrument's frame (module docstring)."""
         p, reg = self.problem, self.registration
+        assert reg is not None  # from_measurements registers every measured task
         Rt = reg.R.T
         in_base = self.calibrated_robot(x).transformed(Rt, -Rt @ reg.t)
         turn = np.eye(3) if reg.tool_rotation is None else reg.tool_rotation
@@ -134,6 +136,7 @@ class MeasuredTask(Task):
         calibration poses (``outside``, ``distance_ratio``: :mod:`zrp_ga.model.coverage`) and,
         for a calibrated arm, its predicted 1-sigma error (``predicted_mm``,
         :mod:`zrp_ga.model.uncertainty`)."""
+        assert self.registration is not None  # from_measurements registers every measured task
         records.write_json(out / "registration.json", self.registration.to_dict())
         if self.residual is not None:
             self.residual.write(out / residual_file.FILE)
@@ -145,6 +148,7 @@ class MeasuredTask(Task):
             m = self.sets[k]
             where = region.assess(m.q)
             predicted = None if unc is None else unc.position_m(m.q, m.tools)
+            assert m.lines is not None  # Measurements numbers its rows
             rows += [{"set": k, "line": int(line), **({"tool": names[t]} if len(names) > 1 else {}),
                       "nominal_mm": b * 1e3, "calibrated_mm": a * 1e3,
                       "predicted_mm": float(predicted[j]) * 1e3 if predicted is not None else "",
@@ -225,6 +229,7 @@ def read_sets(robot: ZRPRobot, seed: int, c: MeasuredConf) -> tuple[Measurements
     or the calibration file split at random. The validation file is read in the units the
     calibration file was found in."""
     fmt = measured_format(robot, c)
+    assert c.calibration_file  # MeasuredConf.check requires it
     if c.format is Format.zrp:
         orientation_columns(header(data_path(c.calibration_file)), c.calibration_file, c)
     calib = measurements.read(data_path(c.calibration_file), fmt, robot, c.drop_bad_rows)
@@ -301,7 +306,7 @@ def from_measurements(robot: ZRPRobot, calib: Measurements, val: Measurements | 
     layout = masked(c, layout, fixed_info)
     scale = term_scales(nominal, layout.unmasked, calib.q)
     half = gene_half_widths(layout, nominal, calib.q, reg, c, scale) if c.ranges is Ranges.data else half_ranges(c, layout, scale)
-    data = calib.for_calibration(c.use_orientation, c.use_weights)
+    data = calib.for_calibration(bool(c.use_orientation), c.use_weights)
     problem = CalibrationProblem(nominal, data, layout, -half, half, c.cost, c.norm, c.orientation_weight, c.kernel)
     setup = None
     if prepared:
@@ -405,6 +410,7 @@ def file_size(robot: ZRPRobot, c: MeasuredConf) -> ProblemSize:
     f = c.validation_fraction or 0.0
     M, V = (rows[0], rows[1]) if rows[1] else (round(rows[0] * (1 - f)), round(rows[0] * f))
     if c.use_orientation is None:  # fitted when the file has them: counted when it may
+        assert c.calibration_file  # MeasuredConf.check requires it
         has = c.format is Format.ur10_ipa or {"rx", "ry", "rz"} <= set(header(data_path(c.calibration_file)))
         c = dataclasses.replace(c, use_orientation=bool((has and c.orientation_convention) or c.format is Format.ur10_ipa))
     columns = robot.n + 3 + 3 * bool(c.use_orientation)

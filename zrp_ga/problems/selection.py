@@ -162,6 +162,7 @@ def judge(task: Task) -> Judgement:
     p = task.problem
     with threadpool_limits(limits=1, user_api="blas"):  # as the app runs its optimisers
         fit = levenberg_marquardt(p)  # as zrp-ga algorithm=lm runs it
+    assert fit.x is not None  # the start, the nominal arm, has a finite cost
     x = error_model.canonical(p.layout, p.nominal, fit.x) if p.cost is Cost.nonlinear else fit.x
     zero = np.zeros_like(x)
     both = np.vstack([zero, x])
@@ -178,7 +179,8 @@ class SelectionTask(Task, SelfJudging):
     candidate rows; ``reference``: also judge the calibration on all candidates. It judges its
     own results (:class:`zrp_ga.problems.protocol.SelfJudging`): :meth:`judged`, :meth:`params_table`."""
 
-    problem: SelectionProblem
+    # Not Task's CalibrationProblem: the methods of Task that use one are overridden here.
+    problem: SelectionProblem  # type: ignore[assignment]  # a pose subset's problem, not a calibration's
     calibrate_on: Callable[[NDArray[np.intp]], Task] | None = None
     candidates: Measurements | None = None
     reference: bool = True
@@ -194,6 +196,7 @@ class SelectionTask(Task, SelfJudging):
         rows = self.chosen(rows)
         key = tuple(sorted(rows.tolist()))
         if key not in self._judged:
+            assert self.calibrate_on is not None  # build() gives it
             self._judged[key] = judge(self.calibrate_on(rows))
         return self._judged[key]
 
@@ -218,6 +221,7 @@ class SelectionTask(Task, SelfJudging):
 
     def judged(self, result: Found) -> tuple[dict[str, Any], NDArray[np.intp]]:
         """``summary.json``'s judgement of the best subset (see :func:`zrp_ga.run.summary.judged`)."""
+        assert result.x is not None  # every pose subset has a finite cost
         x = self.chosen(result.x)
         j = self.judgement(x)
         mm = lambda pair: {"nominal": pair[0] * 1e3, "calibrated": pair[1] * 1e3}
@@ -250,6 +254,7 @@ class SelectionTask(Task, SelfJudging):
         """``summary.json``'s ``selection`` entry: the chosen poses, their indices, the
         calibration on them and (``reference``) the calibration on all candidates."""
         x, p = self.chosen(x), self.problem
+        assert self.candidates is not None and self.candidates.lines is not None  # build() gives them, rows numbered
         values = {k: float(v[0]) for k, v in p.indices(x[None]).items()}
         out = {"k": p.k, "index": p.index.value, "candidates": p.n_candidates, "identifiable_directions": p.m,
                "identified_directions": self.identified(x), "length_scale_m": p.length_m,
@@ -272,7 +277,9 @@ class SelectionTask(Task, SelfJudging):
     def write(self, out: Path, x: ArrayLike) -> None:
         """``selected_poses.csv``: candidate index, file line, joint values (the arm calibrated
         on them goes to the robot files, :func:`zrp_ga.run.summary.write_robot`)."""
+        assert self.candidates is not None  # build() gives them
         x, q = self.chosen(x), self.candidates.q
+        assert self.candidates.lines is not None  # Measurements numbers its rows
         records.write_csv(out / SELECTED, [{"candidate": int(c), "line": int(self.candidates.lines[c]),
                                             **{f"q{i + 1}": v for i, v in enumerate(q[c])}} for c in x])  # fmt: skip
 
@@ -308,7 +315,7 @@ def simulated(robot: ZRPRobot, seed: int, c: PoseSelectionConf) -> dict[str, Any
     instance = seed if c.seed is None else c.seed
     rng = np.random.default_rng([instance, 1])
     truth = simulation.true_robot(robot, full, rng, c.axis_error, c.body_error)
-    noise = dict(joint_noise=c.joint_noise, position_noise=c.position_noise, orientation_noise=c.orientation_noise,
+    noise: dict[str, Any] = dict(joint_noise=c.joint_noise, position_noise=c.position_noise, orientation_noise=c.orientation_noise,
                  position_only=c.position_only)  # fmt: skip
     cand = simulation.measure(truth, joints_within_limits(robot, c.n_candidates, rng), rng, **noise)
     val = simulation.measure(truth, joints_within_limits(robot, c.n_validation, rng), rng, **noise)
