@@ -109,3 +109,14 @@ def test_prediction_and_its_sigma_carry_the_residual_model(truth, runs):
     np.testing.assert_allclose(s_gp, np.hypot(s_plain, np.sqrt(3) * gp_std * 1e3), rtol=1e-9)
     far = np.full((1, 6), 3.0)  # beyond every calibration pose: the process's prior spread counts
     assert cal.predict(far).position_mm[0] > plain.predict(far).position_mm[0] + 0.1
+
+
+def test_the_run_pose_table_predicts_with_the_residual_model_spread(runs):
+    import pandas as pd
+
+    cal, plain = zrp_ga.load(runs[0]), zrp_ga.load(runs[1])
+    rows = pd.read_csv(runs[0] / "pose_errors.csv")
+    rows = rows[rows["set"] == "calibration"]
+    q = cal.residual.q[rows["line"].to_numpy() - rows["line"].min()]  # the calibration poses, in their order
+    spread = np.sqrt(3) * cal.residual.predict(q, std=True)[1] * 1e3
+    np.testing.assert_allclose(rows["predicted_mm"], np.hypot(plain.predict_error(q)["position_mm"], spread), rtol=1e-6)
