@@ -71,6 +71,7 @@ def test_compensation_with_the_residual_model_brings_the_true_arm_to_the_targets
         c = zrp_ga.compensate(run, program, kind="cartesian", frame="instrument", tool="calibration", length_unit="m",
                               angle_unit="rad")  # fmt: skip
         assert c.reached.all()
+        assert any("residual model" in note for note in c.arms.notes) == (name == "gp")
         errors[name] = np.linalg.norm(truth(c.q) - targets, axis=1) * 1e3  # judged on the true arm, mm
         if name == "gp":  # its predicted sigma: the parametric one and the process's spread in quadrature
             std = zrp_ga.load(with_gp).residual.predict(c.q, std=True)[1]

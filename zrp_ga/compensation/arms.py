@@ -140,6 +140,11 @@ def _from_calibration(calibration: Calibration, source: str = "the calibration")
     notes = []
     if calibration.summary.get("returned") == "nominal":
         notes.append(f"{source}: the run returned the nominal arm (it fitted no better): nothing to correct")  # fmt: skip
+    if calibration.residual is not None:
+        notes.append(f"{source}: the calibrated model includes its residual model (a Gaussian process on joint space, "
+                     "residual.json): the inverse kinematics solves on the parametric model plus its correction, applied "
+                     "as a translation of the hand, and sigma_mm adds its spread; far from the calibration poses the "
+                     "correction fades to zero")  # fmt: skip
     return Arms(calibration.arm, calibration.nominal, base, source, tuple(notes), tool=tool,
                 orientations=calibration.orientations, measured=base is not None, noise_mm=_noise(calibration.summary),
                 uncertainty=calibration.uncertainty, coverage=calibration.coverage, residual=calibration.residual)  # fmt: skip
