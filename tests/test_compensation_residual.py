@@ -53,15 +53,15 @@ def runs(truth, tmp_path_factory):
     d = tmp_path_factory.mktemp("gp")
     q = rng.uniform(-1.2, 1.2, (150, 6))
     data = Measurements(q=q, p=truth(q) + rng.normal(scale=NOISE_M, size=(len(q), 3)), source="tracker")
-    zrp_ga.calibrate("ur10", data, algorithm="lm", out=d / "gp", problem={"model": ["geometric+gp"], "length_unit": "m",
-                                                                         "use_orientation": False})  # fmt: skip
+    cal = zrp_ga.calibrate("ur10", data, algorithm="lm", out=d / "gp", problem={"model": ["geometric+gp"], "length_unit": "m",
+                                                                               "use_orientation": False})  # fmt: skip
     shutil.copytree(d / "gp", d / "parametric")
     (d / "parametric" / FILE).unlink()
-    return d / "gp", d / "parametric"
+    return d / "gp", d / "parametric", cal
 
 
 def test_compensation_with_the_residual_model_brings_the_true_arm_to_the_targets(truth, runs):
-    with_gp, parametric = runs
+    with_gp, parametric, _ = runs
     rng = np.random.default_rng(32)
     q_goal = rng.uniform(-1.0, 1.0, (12, 6))  # inside the calibration poses' ranges
     targets = truth(q_goal)  # where the true arm can go, in the tracker's frame
@@ -110,6 +110,14 @@ def test_prediction_and_its_sigma_carry_the_residual_model(truth, runs):
     np.testing.assert_allclose(s_gp, np.hypot(s_plain, np.sqrt(3) * gp_std * 1e3), rtol=1e-9)
     far = np.full((1, 6), 3.0)  # beyond every calibration pose: the process's prior spread counts
     assert cal.predict(far).position_mm[0] > plain.predict(far).position_mm[0] + 0.1
+
+
+def test_the_calibration_in_memory_predicts_as_the_one_read_back(runs):
+    q = np.random.default_rng(34).uniform(-1.0, 1.0, (5, 6))
+    in_memory, back = runs[2].predict(q), zrp_ga.load(runs[0]).predict(q)
+    assert runs[2].residual is not None
+    np.testing.assert_allclose(in_memory.p, back.p, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(in_memory.position_mm, back.position_mm, rtol=1e-6)
 
 
 def test_the_run_pose_table_predicts_with_the_residual_model_spread(runs):
