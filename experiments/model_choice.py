@@ -3,6 +3,8 @@ RMS side by side, the choice and why, in both protocols:
 
 - **B -> C**: calibrate on series B, validate on series C (C lies beyond B's joint ranges: the
   folds hold out the extreme ranges of the joints C goes beyond, with the coverage warning);
+- **B -> C, positions only** (``problem.use_orientation=false``): the fit issue 30's figures
+  come from (its geometric 1.328 mm); the default fits the files' orientations too;
 - **C 70/30**: series C split 70/30 at random (``problem.validation_fraction=0.3``, seed 0:
   the targets lie inside the calibration's ranges, random 5-fold cross-validation).
 
@@ -14,7 +16,7 @@ every joint (orders 1 and 3), which extrapolate with full amplitude. The choice
 joint values only; each candidate is then fitted on the whole calibration set and validated once,
 for the table. Writes results/model_choice.md and results/model_choice_PROTOCOL.json. Run:
 
-    nice python experiments/model_choice.py [--protocol b_to_c|c_70_30] [--only CANDIDATE ...]
+    nice python experiments/model_choice.py [--protocol b_to_c|positions_b_to_c|c_70_30] [--only CANDIDATE ...]
 
 (``--only``: a part of a protocol's table, for running parts at once; the page joins the parts
 and chooses over the whole table.)
@@ -28,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from pathlib import Path
 
@@ -47,10 +50,13 @@ HARMONICS = [choice.Candidate("harmonics order 1, all joints", {"harmonics": {"o
              choice.Candidate("harmonics order 3, all joints", {"harmonics": {"order": 3, "joints": ALL}})]  # fmt: skip
 PROTOCOLS = {
     "b_to_c": (["problem=ur10_ipa"], CANDIDATES + HARMONICS),
+    "positions_b_to_c": (["problem=ur10_ipa", "problem.use_orientation=false"], CANDIDATES + HARMONICS),
     "c_70_30": (["problem=ur10_ipa", "problem.calibration_file=pkg:ur10_ipa/series_c_random_poses.csv",
                  "problem.validation_file=null", "problem.validation_fraction=0.3"], CANDIDATES),
 }  # fmt: skip
-TITLES = {"b_to_c": "UR10 series B -> series C", "c_70_30": "UR10 series C split 70/30 (seed 0)"}
+TITLES = {"b_to_c": "UR10 series B -> series C (positions and orientations fitted)",
+          "positions_b_to_c": "UR10 series B -> series C, positions only (the issue's protocol)",
+          "c_70_30": "UR10 series C split 70/30 (seed 0)"}
 
 
 def study(name: str, only: list[str] | None = None) -> dict:
@@ -79,7 +85,8 @@ def study(name: str, only: list[str] | None = None) -> dict:
         print(f"  [{name}] validation {cand.name}: {val_rms[cand.name]:.4g} mm", flush=True)
     return {"protocol": name, "overrides": over, "calibration_poses": calib.M, "validation_poses": val.M,
             "folds": scheme.to_dict(), "cross_validation": rows, "validation_rms_mm": val_rms, "cv_wall_s": cv_s,
-            "wall_s": time.time() - t0}  # fmt: skip
+            "wall_s": time.time() - t0, "date": time.strftime("%Y-%m-%d", time.gmtime()),
+            "load": [round(x, 1) for x in os.getloadavg()]}  # fmt: skip
 
 
 def merged(name: str) -> dict | None:
@@ -96,7 +103,16 @@ def merged(name: str) -> dict | None:
     table = [rows[n] for n in order if n in rows]
     chosen, why = choice.choose(table)
     return {**parts[0], "cross_validation": table, "validation_rms_mm": val, "chosen": table[chosen]["name"], "why": why,
-            "missing": missing, "cv_wall_s": sum(p["cv_wall_s"] for p in parts), "wall_s": sum(p["wall_s"] for p in parts)}  # fmt: skip
+            "missing": missing, "load_range": _load_range(parts), "date": max(p.get("date", "2026-12-02") for p in parts),
+            "cv_wall_s": sum(p["cv_wall_s"] for p in parts), "wall_s": sum(p["wall_s"] for p in parts)}  # fmt: skip
+
+
+def _load_range(parts: list[dict]) -> str:
+    """The load averages at the parts' ends (1-minute figures), as a range."""
+    loads = [p["load"][0] for p in parts if "load" in p]
+    if len(loads) < len(parts):
+        loads += [15, 24]  # the parts run 2026-12-02 recorded no load; the page said 15-24 then
+    return f"{min(loads):.0f}-{max(loads):.0f}" if max(loads) - min(loads) >= 1 else f"{loads[0]:.0f}"
 
 
 def table(r: dict) -> list[str]:
@@ -119,7 +135,8 @@ def table(r: dict) -> list[str]:
     v = r["validation_rms_mm"][chosen]
     lines += ["", f"Chosen: **{chosen}**, {r['why']}. Its validation RMS: {v:.3f} mm against the geometric model's {geo:.3f} mm "
               f"({'not worse' if v <= geo else 'WORSE' if v > geo else 'geometric not computed'}). Cross-validation {r['cv_wall_s']:.0f} s, all {r['wall_s']:.0f} s "
-              "(summed over the parts run at once; 2 cores shared with other sessions, load average 15-24).", ""]  # fmt: skip
+              f"(summed over the parts; run {r.get('date', '2026-12-02')}, 2 cores shared with other sessions, load average "
+              f"{r.get('load_range', '15-24')}).", ""]  # fmt: skip
     return lines
 
 

@@ -48,7 +48,13 @@ class Arms:
     the data leave open; ``noise_mm``: the calibration's measurement noise per coordinate as its
     residual shows it (RMS point distance over sqrt 3; None: not known); the calibration's
     ``uncertainty`` (its covariance, in the instrument's frame) and ``coverage`` (its
-    calibration poses), None where not known (a robot file alone)."""
+    calibration poses), None where not known (a robot file alone); ``residual``: its residual
+    model (:class:`zrp_ga.model.residual.Residual`, a Gaussian process on joint space fitted to
+    the measured point's position residuals in the instrument's frame; None: the calibration has
+    none), which :meth:`correction` turns into the base frame: the calibrated model is then
+    ``FK_cal(q) + correction(q)``. The process corrects the measured point's position; at
+    another point of the hand (another tool, the flange) its correction is applied as the same
+    translation (it carries no orientation)."""
 
     calibrated: ZRPRobot
     nominal: ZRPRobot
@@ -62,6 +68,27 @@ class Arms:
     noise_mm: float | None = None
     uncertainty: Any = None  # zrp_ga.model.uncertainty.Uncertainty of the calibration (None: not known)
     coverage: Any = None  # zrp_ga.model.coverage.Coverage of its calibration poses (None: not known)
+    residual: Any = None  # zrp_ga.model.residual.Residual of the calibration, instrument frame (None: none)
+
+    def correction(self, q: ArrayLike) -> Array:
+        """The residual model's mean correction at joint values q, (n,) -> (3,) or (M, n) ->
+        (M, 3) m, in the robot's base frame (zeros without a residual model)."""
+        q = np.asarray(q, dtype=float)
+        rows = np.atleast_2d(q)
+        if self.residual is None:
+            out = np.zeros((len(rows), 3))
+        else:
+            B = np.eye(3) if self.base is None else np.asarray(self.base, dtype=float)[:3, :3]
+            out = np.asarray(self.residual.predict(rows), dtype=float) @ B  # instrument -> base: B^T c per row
+        return out[0] if q.ndim == 1 else out
+
+    def residual_std(self, q: ArrayLike) -> Array:
+        """The residual model's predictive standard deviation per coordinate (M,) m at joint
+        values q (M, n) (its signal's, not the measurement noise's; zeros without one)."""
+        rows = np.atleast_2d(np.asarray(q, dtype=float))
+        if self.residual is None:
+            return np.zeros(len(rows))
+        return np.asarray(self.residual.predict(rows, std=True)[1], dtype=float)
 
     def noted(self, *notes: str) -> Arms:
         return dataclasses.replace(self, notes=(*self.notes, *notes))
@@ -113,9 +140,14 @@ def _from_calibration(calibration: Calibration, source: str = "the calibration")
     notes = []
     if calibration.summary.get("returned") == "nominal":
         notes.append(f"{source}: the run returned the nominal arm (it fitted no better): nothing to correct")  # fmt: skip
+    if calibration.residual is not None:
+        notes.append(f"{source}: the calibrated model includes its residual model (a Gaussian process on joint space, "
+                     "residual.json): the inverse kinematics solves on the parametric model plus its correction, applied "
+                     "as a translation of the hand, and sigma_mm adds its spread; far from the calibration poses the "
+                     "correction fades to zero")  # fmt: skip
     return Arms(calibration.arm, calibration.nominal, base, source, tuple(notes), tool=tool,
                 orientations=calibration.orientations, measured=base is not None, noise_mm=_noise(calibration.summary),
-                uncertainty=calibration.uncertainty, coverage=calibration.coverage)  # fmt: skip
+                uncertainty=calibration.uncertainty, coverage=calibration.coverage, residual=calibration.residual)  # fmt: skip
 
 
 def _noise(summary: dict) -> float | None:

@@ -9,7 +9,10 @@ calibrated one. For each target ``T*`` (a pose, or a position) in the robot's ba
    ``IK_nom(T*)`` from a seed configuration (see :func:`compensate`).
 2. ``q* = IK_cal(T*)``: damped least squares on the calibrated model
    (:mod:`zrp_ga.compensation.ik`), started from ``q_nom``, so that the arm stays on the
-   program's branch.
+   program's branch. The full model: the parametric one (geometry and non-geometric terms) and,
+   when the calibration has one, its residual model's correction
+   (:meth:`zrp_ga.compensation.arms.Arms.correction`; a fixed-point iteration on the
+   parametric solver, :func:`zrp_ga.compensation.ik.solve`).
 3. Joint compensation: send ``q*``. Cartesian compensation: send ``T_c = FK_nom(q*)``; a
    controller solving ``IK_nom(T_c)`` on the same branch (the row's ``cf`` and branch signs)
    gets ``q*`` back.
@@ -360,7 +363,7 @@ def _solve_all(pr: Program, arms: Arms, p: Array, R: Array | None, first: Array,
             q_nom[k] = s.q
             if s.reached:
                 seed = s.q
-        s = solve(cal, p[k], R_k, q_nom[k], **tol)
+        s = solve(cal, p[k], R_k, q_nom[k], **tol, correction=None if arms.residual is None else arms.correction)
         q_cal[k], reached[k] = s.q, s.reached
         if not s.reached:
             reasons[k] = why(cal, p[k], s, R is not None)

@@ -5,11 +5,24 @@ and why a target was not reached.
 the limits, then ``scipy.optimize.least_squares`` (trust-region reflective, the limits as
 bounds) for anything else. Started from the program's joints (or the nominal solution), it stays
 on the program's branch (elbow up or down, wrist flipped or not).
+
+A calibration with a residual model (:mod:`zrp_ga.model.residual`: a Gaussian process on joint
+space, what no parametric term explains) predicts the hand at ``FK(q) + c(q)``, ``c`` the
+process's mean correction. :func:`solve` with ``correction=c`` solves ``FK(q) + c(q) = p`` by a
+fixed-point iteration on the parametric solver: ``q_{k+1} = IK(p - c(q_k))`` from ``q_k``, until
+``c`` changes by less than a tenth of the tolerance. Why not ``c``'s Jacobian inside the
+Gauss-Newton steps: ``c`` varies by fractions of a millimetre over its kernel's length scales
+(tenths of a radian and more), so ``dc/dq`` is some 1e-3 of the arm's Jacobian and the iteration
+contracts by about that factor per step (two or three steps); it keeps the parametric solver as
+it is (its limits, its reasons) and needs no derivative of the process (scikit-learn gives
+none; finite differences would cost n extra predictions per step). Orientation targets are left
+to the parametric model: the process corrects positions only.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -25,6 +38,7 @@ TOLERANCE_RAD = 1e-6  # and this orientation residual, rad
 ORIENTATION_LENGTH_M = 1.0  # 1 rad of orientation residual weighs as this many metres in the fit
 NEWTON_STEPS = 20  # Gauss-Newton steps before the bounded solver takes over
 NEWTON_DONE = 1e-14  # residual norm (m, rad) at which the steps stop: round-off
+CORRECTION_STEPS = 20  # fixed-point steps with a residual model's correction (each contracts ~1e-3: a few suffice)
 
 
 def chain(robot: ZRPRobot, q: ArrayLike) -> tuple[Array, Array, Array, Array]:
@@ -77,15 +91,20 @@ class Solution:
 
 
 def solve(robot: ZRPRobot, p: ArrayLike, R: ArrayLike | None, q0: ArrayLike,
-          tolerance_m: float = TOLERANCE_M, tolerance_rad: float = TOLERANCE_RAD) -> Solution:  # fmt: skip
+          tolerance_m: float = TOLERANCE_M, tolerance_rad: float = TOLERANCE_RAD,
+          correction: Callable[[Array], Array] | None = None) -> Solution:  # fmt: skip
     """Joint values within the limits that put ``robot``'s hand on position ``p`` (3,) m and,
-    if given, orientation ``R`` (3, 3), from ``q0`` (n,). The residual is ``[p(q) - p;
+    if given, orientation ``R`` (3, 3), from ``q0`` (n,); with ``correction`` (joint values (n,)
+    -> a position offset (3,) m in the robot's frame: a residual model's mean), the hand at
+    ``FK(q) + correction(q)`` (module docstring: a fixed-point iteration on this solver). The residual is ``[p(q) - p;
     ORIENTATION_LENGTH_M log(R(q) R^T)]``, its Jacobian the geometric one mapped through the
     inverse left Jacobian of SO(3). Gauss-Newton steps (least-norm ``numpy.linalg.lstsq``, as
     long as each lowers the residual and stays within the limits) reach a nearby solution in a
     few steps; anything else goes on with ``scipy.optimize.least_squares`` (trust-region
     reflective, the limits as bounds), which also says which joints a limit holds."""
     p = np.asarray(p, dtype=float)
+    if correction is not None:
+        return _solve_corrected(robot, p, R, q0, correction, tolerance_m, tolerance_rad)
     lower, upper = robot.joint_limits.T
     span = upper - lower
     x0 = np.clip(np.asarray(q0, dtype=float), lower + 1e-9 * span, upper - 1e-9 * span)
@@ -122,6 +141,26 @@ def solve(robot: ZRPRobot, p: ArrayLike, R: ArrayLike | None, q0: ArrayLike,
     dr = 0.0 if R is None else _angle(Rq, R)
     reached = dp <= tolerance_m and dr <= tolerance_rad
     return Solution(q, reached, dp, dr, held)
+
+
+def _solve_corrected(robot: ZRPRobot, p: Array, R: ArrayLike | None, q0: ArrayLike, correction: Callable[[Array], Array],
+                     tolerance_m: float, tolerance_rad: float) -> Solution:  # fmt: skip
+    """:func:`solve` of ``FK(q) + correction(q) = p``: ``q_{k+1} = IK(p - c(q_k))`` from ``q_k``
+    until ``c`` moves by less than a tenth of ``tolerance_m`` (module docstring); the position
+    residual reported (and judged) is that of the corrected model."""
+    q = np.asarray(q0, dtype=float)
+    c = np.asarray(correction(q), dtype=float)
+    s = solve(robot, p - c, R, q, tolerance_m, tolerance_rad)
+    for _ in range(CORRECTION_STEPS):
+        c_new = np.asarray(correction(s.q), dtype=float)
+        moved = float(np.linalg.norm(c_new - c))
+        c = c_new
+        if moved <= 0.1 * tolerance_m:
+            break
+        s = solve(robot, p - c, R, s.q, tolerance_m, tolerance_rad)
+    pq = kinematics.forward(robot, s.q)[1] + np.asarray(correction(s.q), dtype=float)
+    dp = float(np.linalg.norm(pq - p))
+    return Solution(s.q, dp <= tolerance_m and s.orientation_rad <= tolerance_rad, dp, s.orientation_rad, s.at_limit)
 
 
 def _angle(A: Array, B: Array) -> float:

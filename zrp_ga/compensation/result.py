@@ -93,6 +93,10 @@ def evaluated(pr: Program, arms: Arms, q_cal: Array, q_nom: Array, p: Array, R: 
     cal, nom = arms.calibrated, arms.nominal
     R_after, p_after = kinematics.forward(cal, q_cal)
     R_before, p_before = kinematics.forward(cal, q_nom)
+    if arms.residual is not None:  # the full model: the residual model's correction too (NaN rows stay NaN)
+        ok_after, ok_before = np.all(np.isfinite(q_cal), axis=1), np.all(np.isfinite(q_nom), axis=1)
+        p_after[ok_after] += arms.correction(q_cal[ok_after])
+        p_before[ok_before] += arms.correction(q_nom[ok_before])
     R_corr, p_corr = kinematics.forward(nom, q_cal)
     angle = lambda A: np.degrees(np.linalg.norm(so3.log(A @ np.swapaxes(R, 1, 2)), axis=-1)) if R is not None else np.zeros(pr.M)
     q = np.where(reached[:, None], q_cal, np.nan)
@@ -107,7 +111,9 @@ def evaluated(pr: Program, arms: Arms, q_cal: Array, q_nom: Array, p: Array, R: 
 def predicted(arms: Arms, q: Array, orientations: bool = True) -> dict[str, Any]:
     """Per target at the corrected joints q (M, n) (NaN rows: not reached, NaN there): the
     calibrated model's predicted 1-sigma error at the program's point, ``sigma_mm`` (position
-    radius) and, with ``orientations``, ``sigma_deg`` (the calibration's covariance,
+    radius; with a residual model its predictive standard deviation added, ``sqrt(3) s`` in
+    quadrature: the process's own uncertainty, which grows to its prior's away from the
+    calibration poses) and, with ``orientations``, ``sigma_deg`` (the calibration's covariance,
     :meth:`zrp_ga.model.uncertainty.Uncertainty.predict`, carried from its measured point to the
     program's by the lever arm between them, in the instrument's frame); and where q lies against
     the calibration poses (:mod:`zrp_ga.model.coverage`): ``outside`` (bool), ``distance_ratio``
@@ -125,7 +131,8 @@ def predicted(arms: Arms, q: Array, orientations: bool = True) -> dict[str, Any]
             _, p = kinematics.forward(arms.calibrated, q[ok])
             _, at = kinematics.forward(u.robot(0), q[ok])
             e = u.predict(q[ok], 0, offset_m=p @ B[:3, :3].T + B[:3, 3] - at)
-            sigma[ok] = e["position_total_m"] * 1e3
+            gp = np.sqrt(3.0) * arms.residual_std(q[ok])  # the residual model's own uncertainty, as a radius
+            sigma[ok] = np.hypot(e["position_total_m"], gp) * 1e3
             turn[ok] = np.degrees(np.hypot(e["orientation_rad"], e["orientation_unidentified_rad"]))
         out["sigma_mm"] = sigma
         if orientations:

@@ -135,7 +135,7 @@ class MeasuredTask(Task):
         position error, nominal and calibrated, with where the pose lies against the
         calibration poses (``outside``, ``distance_ratio``: :mod:`zrp_ga.model.coverage`) and,
         for a calibrated arm, its predicted 1-sigma error (``predicted_mm``,
-        :mod:`zrp_ga.model.uncertainty`)."""
+        :mod:`zrp_ga.model.uncertainty`, with a residual model's predictive spread in quadrature)."""
         assert self.registration is not None  # from_measurements registers every measured task
         records.write_json(out / "registration.json", self.registration.to_dict())
         if self.residual is not None:
@@ -149,6 +149,8 @@ class MeasuredTask(Task):
             where = region.assess(m.q)
             predicted = None if unc is None else unc.position_m(m.q, m.tools)
             assert m.lines is not None  # Measurements numbers its rows
+            if predicted is not None and self.residual is not None:  # the residual model's own spread, as a radius
+                predicted = np.hypot(predicted, np.sqrt(3.0) * self.residual.predict(m.q, std=True)[1])
             rows += [{"set": k, "line": int(line), **({"tool": names[t]} if len(names) > 1 else {}),
                       "nominal_mm": b * 1e3, "calibrated_mm": a * 1e3,
                       "predicted_mm": float(predicted[j]) * 1e3 if predicted is not None else "",

@@ -16,9 +16,10 @@ holds the optimiser's ``result`` and the ``task`` (None once loaded); nothing el
   conventions, with their corrections), Universal Robots' ``default_kinematics.yaml``, the ZRP
   file and the frames file, each to a path of one's choosing (the writers of the run's files:
   :func:`zrp_ga.io.robot_files.write_all`).
-- :meth:`Calibration.predict`: positions and orientations of the calibrated arm at joint values,
-  with their predicted 1-sigma errors where the calibration has a covariance, and where the
-  joint values lie against the calibration poses.
+- :meth:`Calibration.predict`: positions and orientations of the calibrated arm at joint values
+  (with its residual model's correction when it has one), with their predicted 1-sigma errors
+  where the calibration has a covariance, and where the joint values lie against the
+  calibration poses.
 """
 
 from __future__ import annotations
@@ -48,6 +49,7 @@ if TYPE_CHECKING:
 
     from zrp_ga.algorithms import Result
     from zrp_ga.model.coverage import Assessment
+    from zrp_ga.model.residual import Residual
     from zrp_ga.problems import Task
 
 Array = NDArray[np.float64]
@@ -115,6 +117,7 @@ class Calibration:
     directory: Path | None = None
     _uncertainty: Uncertainty | Literal[False] | None = dataclasses.field(default=False, repr=False)  # False: not computed yet
     _coverage: Coverage | Literal[False] | None = dataclasses.field(default=False, repr=False)
+    _residual: Residual | Literal[False] | None = dataclasses.field(default=False, repr=False)
 
     # --- made by a run ----------------------------------------------------------------------------
     @classmethod
@@ -182,12 +185,27 @@ class Calibration:
                 self._coverage = Coverage.read(path) if path is not None and path.is_file() else None
         return self._coverage
 
+    @property
+    def residual(self) -> Residual | None:
+        """The calibration's residual model (:class:`zrp_ga.model.residual.Residual`: a Gaussian
+        process on joint space, the measured point's position residuals in the measurements'
+        frame; ``problem.model``'s ``+gp``), None without one."""
+        if self._residual is False:
+            from zrp_ga.model import residual
+
+            if self.task is not None:
+                self._residual = getattr(self.task, "residual", None)
+            else:
+                path = None if self.directory is None else self.directory / residual.FILE
+                self._residual = residual.Residual.read(path) if path is not None and path.is_file() else None
+        return self._residual
+
     # --- prediction ---------------------------------------------------------------------------------
     def predict_error(self, q: ArrayLike, tool: int = 0) -> dict[str, Any]:
         """Predicted 1-sigma errors of the calibrated arm at joint values q (M, n) (the model's
         units: rad, m; measured data: as read from the file, converted), each (M,):
         ``position_mm`` (the identified combinations' covariance and the prior of those left at
-        nominal together), ``position_identified_mm``, ``position_unidentified_mm``,
+        nominal together, and a residual model's predictive spread), ``position_identified_mm``, ``position_unidentified_mm``,
         ``orientation_mrad``; and where q lies against the calibration poses: ``outside``
         (bool) and ``distance_ratio`` (:mod:`zrp_ga.model.coverage`). ValueError when there is
         no uncertainty (:attr:`uncertainty`).
@@ -204,7 +222,9 @@ class Calibration:
                              "leave no degrees of freedom to estimate the noise)")  # fmt: skip
         p = u.predict(q, tool)
         where = self._coverage_of(q)
-        return {"position_mm": p["position_total_m"] * 1e3, "position_identified_mm": p["position_m"] * 1e3,
+        gp = self.residual  # its predictive spread, as a radius, in quadrature (predict)
+        spread = 0.0 if gp is None else np.sqrt(3.0) * gp.predict(np.atleast_2d(np.asarray(q, dtype=float)), std=True)[1]
+        return {"position_mm": np.hypot(p["position_total_m"], spread) * 1e3, "position_identified_mm": p["position_m"] * 1e3,
                 "position_unidentified_mm": p["position_unidentified_m"] * 1e3,
                 "orientation_mrad": np.hypot(p["orientation_rad"], p["orientation_unidentified_rad"]) * 1e3,
                 "outside": None if where is None else where.outside,
@@ -240,7 +260,10 @@ class Calibration:
         frame, as ``calibrated_robot.yaml``), with their predicted 1-sigma errors (the
         calibration's covariance, carried to the point by its lever arm from a measured point:
         :meth:`zrp_ga.model.uncertainty.Uncertainty.predict`) and where q lies against the
-        calibration poses.
+        calibration poses. A calibration with a residual model (:attr:`residual`) adds its
+        correction to the positions (a translation of the hand: the process carries no
+        orientation) and its predictive standard deviation to ``position_mm`` (``sqrt(3) s`` in
+        quadrature).
 
         >>> import numpy as np, zrp_ga
         >>> cal = zrp_ga.calibrate("puma560", problem={"n_poses": 30, "cost": "nonlinear"}, algorithm="lm")
@@ -263,14 +286,20 @@ class Calibration:
         R = R @ T[:3, :3]
         B = np.eye(4) if self.base is None else np.asarray(self.base, dtype=float)
         p_m, R_m = p @ B[:3, :3].T + B[:3, 3], B[:3, :3] @ R  # in the measurements' frame
+        lever_at = p_m  # the point the covariance is carried to (the parametric model's)
+        gp = self.residual
+        if gp is not None:  # the full model: the residual model's correction (a translation of the hand)
+            c = gp.predict(q)
+            p_m, p = p_m + c, p + c @ B[:3, :3]
         pos = rot = None
         u = self.uncertainty
         if u is not None:
             names = list(self.tools)
             k = names.index(name) if name in names and names.index(name) < u.layout.n_tools else 0
             _, at = kinematics.forward(u.robot(k), q)
-            e = u.predict(q, k, offset_m=p_m - at)
-            pos = e["position_total_m"] * 1e3
+            e = u.predict(q, k, offset_m=lever_at - at)
+            spread = 0.0 if gp is None else np.sqrt(3.0) * gp.predict(q, std=True)[1]  # the process's own, as a radius
+            pos = np.hypot(e["position_total_m"], spread) * 1e3
             rot = np.hypot(e["orientation_rad"], e["orientation_unidentified_rad"]) * 1e3
         where = self._coverage_of(q)
         base_frame = frame == "base" or self.base is None
