@@ -5,6 +5,7 @@ the chosen style into the files (PNG, PDF, SVG: print) and in the screen style f
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -83,16 +84,49 @@ def draw(runs: list[Run], t: dict, stage: Path, formats: tuple[str, ...], rule: 
                          _main_effects(t), _interactions(t), _ranks(t), _validation(t, shown, order), _fig2(runs, t, rule, order))
              if s is not None]  # fmt: skip
     out = []
-    for spec in specs:
-        reuse = page and spec["name"] in WIDE and style == "paper"  # a page-wide print figure is screen-sized already
-        with figures.style(style):
-            svg = spec["draw"](stage, formats, reuse)
-        if page and not reuse:
-            with figures.style("screen"):
-                svg = spec["draw"](stage, (), True)
+    for spec, svg in zip(specs, _each(functools.partial(_render, stage, formats, style, page), specs)):
+        reuse = page and spec["name"] in WIDE and style == "paper"
         out.append(dict(name=spec["name"], title=spec["title"], caption=spec["caption"], alt=spec["alt"], svg=svg,
                         scale=1.5 if reuse else 4 / 3))  # fmt: skip
     return out, shown
+
+
+def _render(stage: Path, formats: tuple[str, ...], style: str, page: bool, spec: dict) -> str:
+    """One figure into ``stage`` in ``formats`` and ``style``; its SVG for the page (screen style)
+    when ``page``."""
+    reuse = page and spec["name"] in WIDE and style == "paper"  # a page-wide print figure is screen-sized already
+    with figures.style(style):
+        svg: str = spec["draw"](stage, formats, reuse)
+    if page and not reuse:
+        with figures.style("screen"):
+            svg = spec["draw"](stage, (), True)
+    return svg
+
+
+_WORK: list[Callable[[], str]] = []  # what the forked drawing processes do (inherited, never pickled)
+
+
+def _one(k: int) -> str:
+    return _WORK[k]()
+
+
+def _each(work: Callable[[dict], str], specs: list[dict]) -> list[str]:
+    """``work(spec)`` of each spec, in their order: on the cores this process may use, each
+    figure drawn by a forked process of its own (the figures' closures are inherited, not
+    pickled; each writes its own files); one after the other where there is one core or no
+    ``fork`` (Windows, macOS' default)."""
+    import multiprocessing
+    import os
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    if cores < 2 or len(specs) < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        return [work(spec) for spec in specs]
+    _WORK[:] = [functools.partial(work, spec) for spec in specs]
+    try:
+        with multiprocessing.get_context("fork").Pool(min(cores, len(specs))) as pool:
+            return pool.map(_one, range(len(specs)), chunksize=1)
+    finally:
+        _WORK.clear()
 
 
 WIDE = ("ecdf_by_instance", "main_effects", "critical_difference")  # drawn a page wide: on screen as they are, enlarged
