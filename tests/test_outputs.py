@@ -98,6 +98,9 @@ def test_a_study_sweep_run_again_keeps_its_finished_runs(runs, tmp_path):
     before = {p: p.read_bytes() for p in sweep.rglob("*") if p.is_file() and p.name != directory.MANIFEST}
     assert sweep_batch(_jobs(sweep, [0, 1]), Cache()) == [_result(sweep / str(k))[0] for k in (0, 1)]
     assert {p: p.read_bytes() for p in sweep.rglob("*") if p.is_file() and p.name != directory.MANIFEST} == before
+    # outputs is no setting of the run (it changes no result): the same runs asked with outputs=full are them, kept
+    assert sweep_batch(_jobs(sweep, [0, 1], ("outputs=full",)), Cache()) == [_result(sweep / str(k))[0] for k in (0, 1)]
+    assert {p: p.read_bytes() for p in sweep.rglob("*") if p.is_file() and p.name != directory.MANIFEST} == before
 
 
 def test_a_study_run_continued_from_its_checkpoint_removes_it_at_the_end(runs, tmp_path):
