@@ -163,6 +163,7 @@ def test_launcher_writes_what_hydras_basic_launcher_writes(tmp_path, ours):
             h.runtime.choices.pop("hydra/launcher")
         assert OmegaConf.to_yaml(ho) == OmegaConf.to_yaml(hb)
         assert (o / "zrp-ga.log").read_text().count("job ") == 1
+        assert {str(p.relative_to(b)) for p in b.rglob("*") if p.is_file()} == STUDY_FILES  # Hydra's basic launcher: a study's too
         assert _log_lines(o) == _log_lines(b)  # each job's own lines, in its own file (runs of a batch evolved together)
 
 
