@@ -27,7 +27,7 @@ from zrp_ga.run.shared import Cache
 from zrp_ga.run.sweep import SweepJob, batch_key, sweep_batch, sweep_job
 
 BASE = ["problem=multipose", "problem.n_poses=8", "problem.n_validation=6", "seed=3", "progress=false",
-        "population.mu=12", "population.lambda_=16", "checkpoint_every=4"]  # fmt: skip
+        "population.mu=12", "population.lambda_=16", "checkpoint_every=4", "outputs=full"]  # fmt: skip
 MIXED = [
     ["crossover=sbx", "mutation=gaussian", "inversion=segment", "rotation=segment", "refine=none", "population.generations=9"],
     ["crossover=blend", "mutation=polynomial", "inversion=block", "rotation=none", "refine=none", "population.generations=12"],

@@ -169,7 +169,23 @@ def test_launcher_writes_what_hydras_basic_launcher_writes(tmp_path, ours):
             h.runtime.choices.pop("hydra/launcher")
         assert OmegaConf.to_yaml(ho) == OmegaConf.to_yaml(hb)
         assert (o / "zrp-ga.log").read_text().count("job ") == 1
+        assert {str(p.relative_to(b)) for p in b.rglob("*") if p.is_file()} == STUDY_FILES  # Hydra's basic launcher: a study's too
         assert _log_lines(o) == _log_lines(b)  # each job's own lines, in its own file (runs of a batch evolved together)
+
+
+# What a sweep's run holds (outputs=auto: what a study reads; tests/test_outputs.py for the rest)
+STUDY_FILES = {".hydra/config.yaml", ".hydra/hydra.yaml", ".hydra/overrides.yaml", ".zrp_ga.lock", "zrp-ga.log",
+               "best_params.csv", "convergence.csv", "initial_population.csv", "status.json", "summary.json"}  # fmt: skip
+
+
+def test_a_sweeps_runs_hold_what_a_study_reads_and_the_report_reads_them(tmp_path, ours):
+    from zrp_ga.report import write_report
+
+    for d in read_manifest(ours)["dir"]:
+        assert {str(p.relative_to(ours / str(d))) for p in (ours / str(d)).rglob("*") if p.is_file()} == STUDY_FILES
+    t = write_report([ours], tmp_path / "report", formats=())
+    assert len(t["runs"]) == 4 and not len(t["left_out"]) and not t["notes"]
+    assert (tmp_path / "report" / "table2_initial_population.md").exists() and (tmp_path / "report" / "table3_best_params.md").exists()
 
 
 def _log_lines(run: Path) -> list[str]:
@@ -286,6 +302,7 @@ def _check_same_as(sweep: Path, whole: Path) -> None:
     assert pd.read_csv(sweep / "manifest.csv")["status"].tolist() == ["done"] * len(w)
     runs, skipped = report.find_runs([sweep])
     assert len(runs) == len(w) and not skipped
+    assert not list(sweep.glob("*/checkpoint.npz"))  # a study's finished runs keep none (outputs=auto in a sweep)
 
 
 def _kill_and_continue(tmp_path: Path, whole: Path, sig: int, seed: int) -> None:

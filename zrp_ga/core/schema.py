@@ -48,6 +48,12 @@ class Objective(enum.Enum):
     over_floor = "over_floor"  # the final cost over the instance's floor (LM's cost, summary.json "floor")
 
 
+class Outputs(enum.Enum):
+    auto = "auto"  # study in a sweep (-m), full in a single run
+    study = "study"  # what a study reads: convergence.csv, summary.json, best_params.csv, initial_population.csv, status.json
+    full = "full"  # and the calibrated arm's files, the problem kind's own, the final checkpoint
+
+
 class Norm(enum.Enum):
     spectral = "spectral"  # 2-norm of the residual vector
     rms = "rms"  # 2-norm / sqrt(rows)
@@ -399,6 +405,7 @@ class Config:
     resume: Optional[str] = None  # a run directory to continue from its checkpoint
     progress: bool = True  # a progress line on stderr: a run's, and a sweep's with zrp_ga's launcher
     objective: Objective = Objective.final_cost  # what the run returns to a sweeper (zrp_ga.run.summary.objective)
+    outputs: Outputs = Outputs.auto  # a run's files: study (a sweep's default) or full (a single run's; zrp_ga.run.assembly)
 
 
 

@@ -32,7 +32,7 @@ import yaml
 from zrp_ga.report.labels import flatten
 from zrp_ga.report.runs import LeftOut, Run, read_text
 
-IGNORED = ("hydra", "progress", "checkpoint_every", "experiment")
+IGNORED = ("hydra", "progress", "checkpoint_every", "experiment", "outputs")
 
 
 def groups(pairs: pd.DataFrame) -> dict[str, int]:

@@ -5,6 +5,7 @@ the chosen style into the files (PNG, PDF, SVG: print) and in the screen style f
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -71,10 +72,12 @@ def _names(t: dict) -> dict[str, str]:
 
 
 def draw(runs: list[Run], t: dict, stage: Path, formats: tuple[str, ...], rule: TargetRule, style: str = "paper",
-         max_lines: int = figures.MAX_LINES, page: bool = True) -> tuple[list[dict], list[str]]:  # fmt: skip
+         max_lines: int = figures.MAX_LINES, page: bool = True,
+         meanwhile: Callable[[], None] | None = None) -> tuple[list[dict], list[str]]:  # fmt: skip
     """Every figure of the report: into ``stage`` in ``formats`` and ``style``, and for the page
     in the screen style (``page``). Returns {name, title, caption, alt, svg} in the page's order
-    and the configurations drawn (the ``max_lines`` best; references always)."""
+    and the configurations drawn (the ``max_lines`` best; references always). ``meanwhile``:
+    called while the figures are drawn by other processes (:func:`_each`), or before them."""
     order = list(t["summary"]["configuration"])
     refs = set(t["summary"].loc[t["summary"]["is_reference"], "configuration"])
     shown = [c for c in order if c not in refs][:max_lines] + [c for c in order if c in refs]
@@ -83,16 +86,54 @@ def draw(runs: list[Run], t: dict, stage: Path, formats: tuple[str, ...], rule: 
                          _main_effects(t), _interactions(t), _ranks(t), _validation(t, shown, order), _fig2(runs, t, rule, order))
              if s is not None]  # fmt: skip
     out = []
-    for spec in specs:
-        reuse = page and spec["name"] in WIDE and style == "paper"  # a page-wide print figure is screen-sized already
-        with figures.style(style):
-            svg = spec["draw"](stage, formats, reuse)
-        if page and not reuse:
-            with figures.style("screen"):
-                svg = spec["draw"](stage, (), True)
+    for spec, svg in zip(specs, _each(functools.partial(_render, stage, formats, style, page), specs, meanwhile)):
+        reuse = page and spec["name"] in WIDE and style == "paper"
         out.append(dict(name=spec["name"], title=spec["title"], caption=spec["caption"], alt=spec["alt"], svg=svg,
                         scale=1.5 if reuse else 4 / 3))  # fmt: skip
     return out, shown
+
+
+def _render(stage: Path, formats: tuple[str, ...], style: str, page: bool, spec: dict) -> str:
+    """One figure into ``stage`` in ``formats`` and ``style``; its SVG for the page (screen style)
+    when ``page``."""
+    reuse = page and spec["name"] in WIDE and style == "paper"  # a page-wide print figure is screen-sized already
+    with figures.style(style):
+        svg: str = spec["draw"](stage, formats, reuse)
+    if page and not reuse:
+        with figures.style("screen"):
+            svg = spec["draw"](stage, (), True)
+    return svg
+
+
+_WORK: list[Callable[[], str]] = []  # what the forked drawing processes do (inherited, never pickled)
+
+
+def _one(k: int) -> str:
+    return _WORK[k]()
+
+
+def _each(work: Callable[[dict], str], specs: list[dict], meanwhile: Callable[[], None] | None = None) -> list[str]:
+    """``work(spec)`` of each spec, in their order: on the cores this process may use, each
+    figure drawn by a forked process (the figures' closures are inherited, not pickled; each
+    writes its own files) while this one calls ``meanwhile``; one after the other, after
+    ``meanwhile``, where there is one core or no ``fork`` (Windows, macOS' default)."""
+    import multiprocessing
+    import os
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    if cores < 2 or len(specs) < 2 or "fork" not in multiprocessing.get_all_start_methods() or multiprocessing.current_process().daemon:
+        if meanwhile is not None:
+            meanwhile()
+        return [work(spec) for spec in specs]
+    _WORK[:] = [functools.partial(work, spec) for spec in specs]
+    try:
+        with multiprocessing.get_context("fork").Pool(min(cores, len(specs))) as pool:
+            drawn = pool.map_async(_one, range(len(specs)), chunksize=1)
+            if meanwhile is not None:
+                meanwhile()
+            return drawn.get()
+    finally:
+        _WORK.clear()
 
 
 WIDE = ("ecdf_by_instance", "main_effects", "critical_difference")  # drawn a page wide: on screen as they are, enlarged

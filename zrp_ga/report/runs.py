@@ -30,7 +30,7 @@ MAX_BYTES = {SUMMARY: 64 << 20, CONVERGENCE: 256 << 20, STATUS: 1 << 20, INITIAL
              MANIFEST: 1 << 30, "overrides.yaml": 1 << 20, "hydra.yaml": 16 << 20, "best_params.csv": 64 << 20}  # a file larger than this is not a run's (bounded memory)
 
 Array = np.ndarray
-IGNORED_KEYS = ("hydra", "experiment", "progress", "checkpoint_every")
+IGNORED_KEYS = ("hydra", "experiment", "progress", "checkpoint_every", "outputs")
 NEEDED_COLUMNS = ("gen", "nevals", "best")
 
 

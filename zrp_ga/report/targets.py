@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -132,17 +133,21 @@ def ecdf(hits_: pd.DataFrame, start: float = 1.0) -> pd.DataFrame:
     budget b, the mean over the configuration's pairs of the share of its runs on that instance
     that hit the level's target within b evaluations (each pair weighs the same, however many
     runs it has). Rows (configuration, evaluations, fraction) at each step, from (``start``, 0)."""
-    rows = []
+    labels: list[Any] = []
+    evaluations: list[np.ndarray] = []
+    fractions: list[np.ndarray] = []
     for label, g in hits_.groupby("configuration", sort=False):
         n_pairs = g.groupby(["instance", "level"]).ngroups
         runs_per_pair = g.groupby(["instance", "level"])["run"].transform("size")
         weight = 1.0 / (n_pairs * runs_per_pair.to_numpy())
         ok = np.isfinite(g["hit"].to_numpy())
         steps = pd.Series(weight[ok]).groupby(g["hit"].to_numpy()[ok]).sum().sort_index()
-        rows.append(dict(configuration=label, evaluations=float(start), fraction=0.0))
-        for e, frac in zip(steps.index, np.cumsum(steps.to_numpy())):
-            rows.append(dict(configuration=label, evaluations=float(e), fraction=float(frac)))
-    df = pd.DataFrame(rows, columns=["configuration", "evaluations", "fraction"])
+        labels += [label] * (len(steps) + 1)  # the starting point, then one row per step
+        evaluations.append(np.r_[float(start), steps.index.to_numpy(dtype=float)])
+        fractions.append(np.r_[0.0, np.cumsum(steps.to_numpy())])
+    if not labels:
+        return pd.DataFrame(columns=["configuration", "evaluations", "fraction"])
+    df = pd.DataFrame({"configuration": labels, "evaluations": np.concatenate(evaluations), "fraction": np.concatenate(fractions)})
     # a hit at evaluation 1 replaces the starting point
     return df.drop_duplicates(["configuration", "evaluations"], keep="last").reset_index(drop=True)
 
@@ -228,7 +233,7 @@ def runtime_hits(runs: list[Run], labels: list[str], targets_: dict[str, np.ndar
     """One row per (run, ECDF target): as :func:`hits` (``level`` the target's number k) with
     ``hit`` and ``nevals`` divided by the run's genome length (evaluations per gene, as COCO
     divides by the dimension; by 1 when the length is unknown)."""
-    parts = []
+    cols: dict[str, list] = {k: [] for k in ("run", "configuration", "instance", "level", "target", "hit", "nevals")}
     for r, label in zip(runs, labels):
         if r.instance not in targets_:
             continue
@@ -236,7 +241,13 @@ def runtime_hits(runs: list[Run], labels: list[str], targets_: dict[str, np.ndar
         tg = targets_[r.instance]
         at = np.searchsorted(-r.best, -tg, side="left")  # the first index where best <= target (best non-increasing)
         hit = np.where(at < len(r.best), r.evals[np.minimum(at, len(r.evals) - 1)], np.inf) / dim
-        parts.append(pd.DataFrame({"run": str(r.path), "configuration": label, "instance": r.instance,
-                                   "level": [f"t{k:02d}" for k in range(len(tg))], "target": tg, "hit": hit, "nevals": r.nevals / dim}))
-    columns = ["run", "configuration", "instance", "level", "target", "hit", "nevals"]
-    return pd.concat(parts, ignore_index=True)[columns] if parts else pd.DataFrame(columns=columns)
+        n = len(tg)
+        for key, value in (("run", str(r.path)), ("configuration", label), ("instance", r.instance)):
+            cols[key] += [value] * n
+        cols["level"] += [f"t{k:02d}" for k in range(n)]
+        cols["target"].append(np.asarray(tg, dtype=float))
+        cols["hit"].append(np.asarray(hit, dtype=float))
+        cols["nevals"].append(np.full(n, r.nevals / dim))
+    if not cols["run"]:
+        return pd.DataFrame(columns=list(cols))
+    return pd.DataFrame({k: np.concatenate(v) if k in ("target", "hit", "nevals") else v for k, v in cols.items()})

@@ -230,11 +230,12 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
         t = build_tables(runs, rule, tuple(budgets) if budgets else None, where)
         t["left_out"], t["notes"] = pd.DataFrame([(os.path.relpath(p, where), why) for p, why in left], columns=["run", "reason"]), []
         t["left_as_found"] = left
-        _write_tables(t, stage)
         figs: list[dict[str, Any]] = []
         shown: list[str] = []
-        if formats:
-            figs, shown = drawing.draw(runs, t, stage, tuple(formats), rule, style)
+        if formats:  # the tables written while other processes draw the figures
+            figs, shown = drawing.draw(runs, t, stage, tuple(formats), rule, style, meanwhile=lambda: _write_tables(t, stage))
+        else:
+            _write_tables(t, stage)
         if latex:
             from zrp_ga.report import latex as tex
 

@@ -4,6 +4,13 @@ start (the random streams, seeded from ``seed``, and the callbacks), its directo
 status (``running``, then ``done``, ``failed`` or ``interrupted``) and the sweep manifest's line,
 and its end (the summary, the objective, the files and the warnings).
 
+What a run writes (``outputs``, :func:`study`): ``full`` (a single run's default) writes every
+file; ``study`` (a sweep's default, ``outputs=auto``) writes what a study reads, convergence.csv,
+summary.json, best_params.csv, initial_population.csv and status.json (Hydra writes the job's
+``.hydra`` record, the sweep its manifest), and neither the calibrated arm's files, the problem
+kind's own, nor a finished run's checkpoint: checkpoints are written during the run, for a
+killed sweep to continue from, and the last one is removed when the run is done.
+
 Runs evolved together differ in two settings only: their convergence rows are kept in memory
 between checkpoints, and their checkpoints are written no sooner than :data:`BATCH_CHECKPOINT_S`
 after the last (a batch of short runs then writes each run's checkpoint once).
@@ -20,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 from zrp_ga.algorithms import Callback, Result
 from zrp_ga.core.errors import warn
+from zrp_ga.core.schema import Outputs
 from zrp_ga.run import directory
 from zrp_ga.run.build import Prepared, inputs
 from zrp_ga.run.directory import Sweep
@@ -53,10 +61,18 @@ class Start:
 Ran = tuple[Result, "Summary"]  # a run's end: its result and its summary (summary.json)
 
 
-def start(p: Prepared, progress: bool, together: bool = False, hashed: dict[str, dict[str, str]] | None = None) -> Start:
+def study(p: Prepared, sweep: Sweep | None) -> bool:
+    """Whether ``p`` writes a study's files only (module docstring): ``outputs=study``, or
+    ``outputs=auto`` (the default) for a ``sweep``'s job."""
+    outputs = p.cfg.outputs
+    return outputs is Outputs.study or (outputs is Outputs.auto and sweep is not None)
+
+
+def start(p: Prepared, progress: bool, together: bool = False, hashed: dict[str, dict[str, str]] | None = None,
+          study: bool = False) -> Start:  # fmt: skip
     """The start of ``p`` (``together``: evolved with other runs); ``hashed``: the hashes of the
     robot and data files of the instances seen so far (:func:`zrp_ga.run.build.inputs`, computed
-    once per instance)."""
+    once per instance); ``study``: no checkpoint after the last generation (:func:`study`)."""
     import numpy as np
 
     from zrp_ga.run import callbacks
@@ -77,7 +93,8 @@ def start(p: Prepared, progress: bool, together: bool = False, hashed: dict[str,
             if p.instance not in hashed:  # the runs of a batch share their instance: hashed once
                 hashed[p.instance] = inputs(p.cfg, p.task)
             cbs.append(callbacks.Checkpoint(p.out / directory.CHECKPOINT, every, p.resolved, p.choices, hashed[p.instance],
-                                            BATCH_CHECKPOINT_S if together else 0.0, rows.flush if together else None))  # fmt: skip
+                                            BATCH_CHECKPOINT_S if together else 0.0, rows.flush if together else None,
+                                            final=not study))  # fmt: skip
     if progress:
         cbs.append(callbacks.Progress())
     return Start(np.random.default_rng([seed, 0]), seeded, cbs)
@@ -102,7 +119,7 @@ def finish(p: Prepared, result: Result, figures: dict[str, Any], cache: Cache, s
     written, x = summary.build(p.task, result, p.cfg, p.resolved, figures, p.algorithm.elapsed(), p.choices)
     written["objective"] = summary.objective(p.cfg, p.task, written, p.instance, cache, _where(sweep))
     if p.out is not None:
-        summary.write(p.out, p.task, result, written, x)
+        summary.write(p.out, p.task, result, written, x, full=not study(p, sweep))
     said = set(getattr(p.task, "warnings", ()))  # the problem's own were said at the start (diagnostics)
     for w in written["warnings"]:
         if w not in said and first_in_sweep(sweep, p.instance, w):
@@ -147,9 +164,12 @@ def begin(p: Prepared, stack: contextlib.ExitStack) -> None:
 
 
 def done(p: Prepared, sweep: Sweep | None) -> None:
-    """The run finished: status ``done``, and the manifest's line for a sweep's job."""
+    """The run finished: status ``done`` (a study's run then removes its checkpoint: :func:`study`),
+    and the manifest's line for a sweep's job."""
     if p.out is not None:
         directory.write_status(p.out, "done")
+        if study(p, sweep):
+            (p.out / directory.CHECKPOINT).unlink(missing_ok=True)
     if sweep is not None:
         directory.record(sweep, "done")
 

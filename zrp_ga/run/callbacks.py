@@ -256,11 +256,15 @@ class Checkpoint(Callback):
     ``inputs`` (hashes of the robot and data it ran on: :func:`zrp_ga.run.build.inputs`).
     ``min_interval_s``: no checkpoint every ``every`` generations sooner than this after the
     last (runs evolved together: a batch's runs are short, their checkpoints a cost);
-    ``before_save``: called before each save (a buffered :class:`ConvergenceLog`'s flush)."""
+    ``before_save``: called before each save (a buffered :class:`ConvergenceLog`'s flush);
+    ``final``: False: none after the last generation (a study's run, ``outputs=study``, keeps no
+    finished run's checkpoint)."""
 
     def __init__(self, path: str | Path, every: int, config: dict[str, Any], choices: dict[str, Any] | None = None,
-                 inputs: dict[str, str] | None = None, min_interval_s: float = 0.0, before_save: Callable[[], None] | None = None):  # fmt: skip
+                 inputs: dict[str, str] | None = None, min_interval_s: float = 0.0, before_save: Callable[[], None] | None = None,
+                 final: bool = True):  # fmt: skip
         self.path, self.every, self.config, self.choices = Path(path), every, config, choices or {}
+        self.final = final
         self.inputs = inputs or {}
         self.min_interval_s, self.before_save = min_interval_s, before_save
         self._saved_at = time.monotonic()
@@ -268,7 +272,8 @@ class Checkpoint(Callback):
     def on_generation(self, algorithm: Algorithm, row: Row) -> None:
         self.last: State = algorithm.state()
         due = self.every and algorithm.gen % self.every == 0 and time.monotonic() - self._saved_at >= self.min_interval_s
-        if not algorithm.has_next() or due:
+        last = not algorithm.has_next()
+        if (last and self.final) or (due and not last):
             self.save()
 
     def on_interrupt(self, algorithm: Algorithm) -> None:

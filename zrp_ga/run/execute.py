@@ -67,7 +67,7 @@ def execute(p: Prepared, progress: bool, sweep: Sweep | None = None, cache: Cach
     import numpy as np
     from threadpoolctl import threadpool_limits
 
-    s = assembly.start(p, progress)
+    s = assembly.start(p, progress, study=assembly.study(p, sweep))
     random.setstate(s.random_state)  # DEAP's own operators draw from `random`
     np.random.seed(int(p.cfg.seed) % 2**32)
     with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread: 50x faster on a busy 2-core machine

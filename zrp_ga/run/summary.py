@@ -280,18 +280,21 @@ def terms_summary(task: Task, x: np.ndarray) -> dict[str, Any]:
                       for name, v in zip(t.spec.names, t.values)}}  # fmt: skip
 
 
-def write(out: Path, task: Task, result: Result, summary: Summary, x: np.ndarray) -> None:
+def write(out: Path, task: Task, result: Result, summary: Summary, x: np.ndarray, full: bool = True) -> None:
     """The run's files after the optimisation; each warning also on the console. A write that
-    fails (a full disk) names the run's directory when its error names no file."""
+    fails (a full disk) names the run's directory when its error names no file. ``full``: False
+    (``outputs=study``, :mod:`zrp_ga.run.assembly`): what a study reads only, summary.json,
+    best_params.csv and initial_population.csv, without the problem kind's own files, the
+    uncertainty and coverage, and the robot files (summary.json then has no ``calibrated_robot``)."""
     from zrp_ga.core.fileio import named
 
     try:
-        _write(out, task, result, summary, x)
+        _write(out, task, result, summary, x, full)
     except OSError as exc:
         raise named(exc, out) from None
 
 
-def _write(out: Path, task: Task, result: Result, summary: Summary, x: np.ndarray) -> None:
+def _write(out: Path, task: Task, result: Result, summary: Summary, x: np.ndarray, full: bool) -> None:
     p = task.problem
     if isinstance(task, SelfJudging):
         params = task.params_table(x)
@@ -302,6 +305,9 @@ def _write(out: Path, task: Task, result: Result, summary: Summary, x: np.ndarra
         params = records.params_by_joint(p.layout, x, truth)
     records.write_csv(out / directory.BEST_PARAMS, params)
     records.write_population(out / directory.INITIAL_POPULATION, p.names, result.initial_x, result.initial_costs)
+    if not full:
+        records.write_json(out / directory.SUMMARY, summary)
+        return
     task.write(out, x)
     if "coverage" in summary:  # what zrp_ga.model.uncertainty.predict_error_mm and coverage.assess_targets read
         from zrp_ga.model.coverage import Coverage

@@ -177,7 +177,7 @@ def _checkpoint(cfg: Config, out: Path) -> tuple[State | None, dict[str, str] | 
 
 def _same_run(cfg: Config, stored: dict[str, Any] | None, out: Path) -> None:
     """Refuse to continue the run in ``out`` when its config (``stored``, from its summary or
-    checkpoint) is not ``cfg`` (the progress line and resume setting aside)."""
+    checkpoint) is not ``cfg`` (the progress line, resume and outputs settings aside: they change no result)."""
 
     def plain(o: Any) -> Any:  # as JSON holds it: non-finite floats as null; a null setting as an absent one
         if isinstance(o, dict):  # (a run recorded before a setting existed holds no key for it)
@@ -186,7 +186,7 @@ def _same_run(cfg: Config, stored: dict[str, Any] | None, out: Path) -> None:
             return [plain(v) for v in o]
         return None if isinstance(o, float) and not math.isfinite(o) else o
 
-    mine, theirs = (plain({k: v for k, v in c.items() if k not in ("progress", "resume")})
+    mine, theirs = (plain({k: v for k, v in c.items() if k not in ("progress", "resume", "outputs")})
                     for c in (schema.to_dict(cfg), stored or {}))  # fmt: skip
     if mine != theirs:
         raise ConfigError(f"{out} holds a run of another config ({_difference(mine, theirs)} differs); "

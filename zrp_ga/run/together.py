@@ -86,7 +86,7 @@ def _begin(group: Sequence[Member], out: list[Ran | Exception | None], held: con
                 out[i] = _NotHeld(exc)
                 continue
             try:
-                starts.append(assembly.start(p, False, True, hashed))
+                starts.append(assembly.start(p, False, True, hashed, assembly.study(p, sweep)))
                 live.append(i)
             except Exception as exc:
                 out[i] = exc

@@ -1,0 +1,56 @@
+"""The report's figures are drawn by forked processes while this one writes the tables
+(``zrp_ga.report.drawing._each``): the report is the one drawn one figure after the other in this
+process, every file and the page alike (the page's time stamp aside)."""
+
+import copy
+import os
+import re
+
+import pytest
+from report_fakes import ALGORITHMS, fake_run
+
+from zrp_ga import report
+
+
+def _study(root):
+    """Three crossovers on three instances, three shared seeds: every figure of the report drawn."""
+    for inst, floor in (("inst-A", 0.01), ("inst-B", 0.02), ("inst-C", 0.03)):
+        for cx, scale in (("blend", 1.0), ("sbx", 1.4), ("two_point", 2.0)):
+            cfg = copy.deepcopy(ALGORITHMS["ga"])
+            cfg["crossover"]["op"]["_target_"] = f"zrp_ga.operators.crossover.{cx}"
+            for seed in range(3):
+                rows = [(10 * (g + 1), floor * (1 + (10 + seed) * scale * 0.5**g)) for g in range(8)]
+                fake_run(root / f"{inst}-{cx}-{seed}", inst, "ga", rows, floor=floor, seed=seed, config=cfg, nominal=1.0,
+                         choices={"algorithm": "ga", "crossover": cx}, validation=1 + 0.1 * scale + 0.01 * seed)  # fmt: skip
+
+
+def _files(out):
+    files = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    page = files.pop(next(p for p in files if p.name == "index.html")).decode()
+    return files, re.sub(r"Made \d{4}-\d\d-\d\d \d\d:\d\d UTC", "Made DATE", page)
+
+
+@pytest.mark.slow  # two reports with their figures: 10 - 25 s on a busy machine (every report test draws forked as well)
+def test_figures_drawn_by_other_processes_give_the_report_drawn_here(tmp_path, monkeypatch):
+    _study(tmp_path / "runs")
+    forked = []
+    import multiprocessing.pool
+
+    pool_init = multiprocessing.pool.Pool.__init__
+
+    def counted(self, *args, **kwargs):
+        forked.append(args)
+        pool_init(self, *args, **kwargs)
+
+    monkeypatch.setattr(multiprocessing.pool.Pool, "__init__", counted)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    report.write_report([tmp_path / "runs"], tmp_path / "forked", formats=("svg", "png"))
+    assert forked  # the figures were drawn by other processes
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0}, raising=False)
+    report.write_report([tmp_path / "runs"], tmp_path / "here", formats=("svg", "png"))
+    assert len(forked) == 1  # one core: drawn here
+    (files, page), (files_here, page_here) = _files(tmp_path / "forked"), _files(tmp_path / "here")
+    assert sorted(files) == sorted(files_here) and any(p.suffix == ".svg" for p in files) and any(p.suffix == ".csv" for p in files)
+    for name in files:
+        assert files[name] == files_here[name], name
+    assert page.count("<svg") >= 5 and page == page_here
