@@ -238,6 +238,12 @@ def _register_launcher() -> None:
 
     if ZrpGaLauncher not in Plugins.instance().discover(Launcher):
         Plugins.instance().register(ZrpGaLauncher)
+    from hydra.plugins.sweeper import Sweeper
+
+    from hydra_plugins.zrp_ga_sweeper.sweeper import ZrpGaSweeper  # hydra/sweeper=zrp_ga
+
+    if ZrpGaSweeper not in Plugins.instance().discover(Sweeper):
+        Plugins.instance().register(ZrpGaSweeper)
 
 
 def _stop(signum: int, frame: Any) -> None:
