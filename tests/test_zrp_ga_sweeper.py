@@ -44,6 +44,34 @@ GRID = ["crossover=one_point,two_point,blend,sbx", "mutation=gaussian,polynomial
         "rotation=none,segment", "seed=range(20)", "population.mu=20,30"]  # fmt: skip
 
 
+class _Keeping:
+    """A config loader that hands out Hydra's compositions and keeps them, as zrp_ga's launcher
+    keeps the checked configs for the jobs (with their YAML when handed out)."""
+
+    def __init__(self, loader):
+        self.loader, self.handed = loader, []
+
+    def get_sources(self):
+        return self.loader.get_sources()
+
+    def load_sweep_config(self, master_config, sweep_overrides):
+        cfg = self.loader.load_sweep_config(master_config=master_config, sweep_overrides=sweep_overrides)
+        self.handed.append((cfg, OmegaConf.to_yaml(cfg)))
+        return cfg
+
+
+def test_checking_leaves_the_configs_it_was_handed_as_they_were():
+    config.launcher_stored()
+    with initialize_config_module("zrp_ga.conf", **config.hydra_options()):
+        master = compose("config", return_hydra_config=True)
+        loader = _Keeping(GlobalHydra.instance().config_loader())
+        jobs = grid(OverridesParser.create().parse_overrides(["crossover=sbx,blend", "seed=0,1,2"]))
+        Checker(loader, master, {"crossover"}).check(jobs)
+    assert len(loader.handed) == 2
+    for cfg, text in loader.handed:
+        assert OmegaConf.to_yaml(cfg) == text and cfg.seed == 0
+
+
 def test_a_grid_is_checked_with_one_composition_per_new_option():
     """960 jobs: 1 composition + one per option not chosen by the first job (3 + 2 + 1 + 1)."""
     assert _checked(GRID).compositions == 8
@@ -68,8 +96,10 @@ def _sweep(where: Path, *args: str) -> subprocess.CompletedProcess:
 
 
 def test_the_sweepers_jobs_write_what_the_basic_sweepers_write(tmp_path):
-    ours, basic = _sweep(tmp_path / "ours", "hydra/sweeper=zrp_ga"), _sweep(tmp_path / "basic")
+    """zrp_ga's sweeper, -m's default (conf/hydra/sweeper/grid.yaml), against Hydra's basic sweeper."""
+    ours, basic = _sweep(tmp_path / "ours"), _sweep(tmp_path / "basic", "hydra/sweeper=basic")
     assert ours.returncode == 0 and basic.returncode == 0, ours.stderr[-2000:] + basic.stderr[-2000:]
+    assert "Warning" not in ours.stderr, ours.stderr
     assert (tmp_path / "ours" / "multirun.yaml").is_file()
     for job in range(4):
         o, b = tmp_path / "ours" / str(job), tmp_path / "basic" / str(job)
@@ -78,7 +108,7 @@ def test_the_sweepers_jobs_write_what_the_basic_sweepers_write(tmp_path):
         ho, hb = (OmegaConf.load(x / ".hydra/hydra.yaml").hydra for x in (o, b))
         for h in (ho, hb):  # what differs by design: the sweeper and the sweep directory
             h.sweeper, h.sweep.dir, h.runtime.output_dir, h.overrides.hydra = None, None, None, None
-            h.runtime.choices.pop("hydra/sweeper")
+            assert h.runtime.choices.pop("hydra/sweeper") == ("grid" if h is ho else "basic")
         assert OmegaConf.to_yaml(ho) == OmegaConf.to_yaml(hb)
 
 

@@ -12,6 +12,7 @@ message. Every job is launched as Hydra launches it (the configured launcher com
 writes its ``.hydra`` record); ``multirun.yaml`` is written as Hydra writes it.
 """
 
+import copy
 import itertools
 import logging
 import time
@@ -85,7 +86,8 @@ class Checker:
                 continue
             plain = all(_key(o) not in self.groups and _plain(o) for o in new)
             if not (plain and choices in self.composed and self._assign(self.composed[choices], new)):
-                self.composed[choices] = self.loader.load_sweep_config(master_config=self.master, sweep_overrides=list(job))
+                cfg = self.loader.load_sweep_config(master_config=self.master, sweep_overrides=list(job))
+                self.composed[choices] = copy.deepcopy(cfg)  # assigned to: not the loader's (a launcher may keep it for the job)
                 self.compositions += 1
             self.seen.update(new)
 
