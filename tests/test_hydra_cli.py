@@ -47,6 +47,43 @@ def test_help_lists_the_groups_and_quoted_examples(tmp_path):
     assert "crossover: blend" in out.stdout and "zrp-ga -m crossover=blend,sbx 'seed=range(5)'" in out.stdout
 
 
+HYDRAS_OWN_HELP = "import sys; sys.argv = ['zrp-ga', *sys.argv[1:]]; from zrp_ga.cli.main import main; main()"
+
+
+@pytest.mark.parametrize("args", [["problem=multipose", "--help"],  # an override: the config it composes
+                                  ["-h", "hydra.help.template='$HYDRA_CONFIG_GROUPS|${hydra.job.name}|$CONFIG'"]])  # fmt: skip
+def test_help_is_hydras_own_text(tmp_path, args):
+    """zrp-ga prints --help from one composition and one listing of the groups (zrp_ga.cli.main._help):
+    the same text as Hydra's own --help (main() without cli()), Hydra's groups and the config
+    (``$HYDRA_CONFIG_GROUPS``, ``$CONFIG``, an interpolation) included."""
+    ours = zrp_ga(*args, cwd=tmp_path)
+    hydras = subprocess.run([sys.executable, "-c", HYDRAS_OWN_HELP, *args], capture_output=True, text=True, cwd=tmp_path)
+    assert hydras.returncode == 0, hydras.stderr[-2000:]
+    assert ours.stdout == hydras.stdout
+    if "-h" in args:
+        assert "hydra/launcher: basic, " in ours.stdout and "|zrp-ga|" in ours.stdout and "crossover:\n" in ours.stdout
+    else:
+        assert "crossover: blend, none, " in ours.stdout
+
+
+def test_help_is_left_to_hydra_where_zrp_ga_cannot_print_it(tmp_path):
+    """Hydra's own --help answers another flag (a user's --config-dir), a template wanting Hydra's
+    parser ($FLAGS_HELP) and a config that does not compose (its one-line error, exit code 2)."""
+    from zrp_ga.cli.main import _help
+
+    for args in (["--help", "--config-dir", str(tmp_path)], ["--help", "--cfg", "job"], ["--help", "hydra.help.template=$FLAGS_HELP"],
+                 ["--help", "crossover=nope"], ["problem=multipose"]):  # fmt: skip
+        assert _help(args) is False, args
+    (tmp_path / "robot").mkdir()
+    (tmp_path / "robot" / "myarm.yaml").write_text("name: ur10\n")
+    out = zrp_ga("--help", "--config-dir", str(tmp_path), cwd=tmp_path)
+    assert "robot: file, myarm, puma560, stanford, ur10" in out.stdout
+    flags = zrp_ga("--help", "hydra.help.template=$FLAGS_HELP", cwd=tmp_path)
+    assert "--config-dir" in flags.stdout
+    bad = zrp_ga("--help", "crossover=nope", cwd=tmp_path, check=False)
+    assert bad.returncode == 2 and bad.stderr.startswith("zrp-ga: error: ") and "crossover" in bad.stderr
+
+
 # the sweeper's params as quoted strings (a comma or range() unquoted would be a sweep over Hydra's own config)
 SMALL_GRID = ["population.max_evals=100", "hydra.sweeper.params.crossover='blend,sbx'", "hydra.sweeper.params.mutation=gaussian",
               "hydra.sweeper.params.inversion=none", "hydra.sweeper.params.rotation=none", "hydra.sweeper.params.seed='range(2)'"]  # fmt: skip

@@ -98,7 +98,8 @@ def cli() -> None:
     held = _JobLineHeld(sys.stderr)
     try:
         with _few_collections(), contextlib.redirect_stderr(held):
-            main()
+            if not _help(sys.argv[1:]):
+                main()
     except (HydraException, OmegaConfBaseException, ValueError, OSError, MemoryError, Refused) as exc:
         if full:
             held.release()
@@ -136,6 +137,71 @@ class _JobLineHeld:
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.stream, name)
+
+
+def _help(args: list[str]) -> bool:
+    """``zrp-ga --help [OVERRIDES]``: Hydra's help text, printed from one composition and one
+    listing of the config groups through Hydra's public interfaces (the Compose API, the config
+    loader's sources, :class:`~hydra.plugins.config_source.ConfigSource`), instead of Hydra's
+    ``--help``, which deep-copies its config repository (Hydra's and zrp_ga's structured configs in
+    its ConfigStore) for each of about 120 questions about the groups: 2 CPU-s for 0.5.
+
+    False, and Hydra answers, for any other command line (another flag, ``--config-dir``: the
+    search path is not the package's alone), a template wanting what only Hydra's own parser knows
+    (``$FLAGS_HELP``, ``$OVERRIDE_ALIASES``) or a config that does not compose (Hydra's message).
+    tests/test_app.py compares the text with Hydra's own."""
+    import copy
+    import functools
+    import string
+
+    if not ("--help" in args or "-h" in args) or any(a.startswith("-") for a in args if a not in ("--help", "-h")):
+        return False
+    overrides = [a for a in args if a not in ("--help", "-h")]
+    from hydra import compose, initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.core.object_type import ObjectType
+    from omegaconf import OmegaConf, flag_override
+
+    try:
+        with initialize_config_module("zrp_ga.conf", **config.hydra_options()):
+            cfg = compose("config", overrides=overrides, return_hydra_config=True)
+            sources = GlobalHydra.instance().config_loader().get_sources()
+        HydraConfig.instance().set_config(cfg)
+        template = string.Template(str(cfg.hydra.help.template))
+    except Exception:
+        return False
+
+    @functools.cache
+    def options(group: str, kind: ObjectType) -> list[str]:  # Hydra's ConfigRepository.get_group_options
+        return sorted({o for s in sources if s.is_group(group) for o in s.list(group, results_filter=kind)})
+
+    def groups(parent: str = "") -> list[str]:  # Hydra's list_all_config_groups
+        found: list[str] = []
+        for child in options(parent, ObjectType.GROUP):
+            name = f"{parent}/{child}" if parent else child
+            if options(name, ObjectType.CONFIG):
+                found.append(name)
+            if options(name, ObjectType.GROUP):
+                found.extend(groups(name))
+        return found
+
+    def listing(hydras: bool) -> str:  # Hydra's format_config_groups
+        chosen = [g for g in groups() if (g == "hydra" or g.startswith("hydra/")) == hydras]
+        return "".join(f"{g}: {', '.join(options(g, ObjectType.CONFIG))}\n" for g in sorted(chosen))
+
+    def job() -> str:  # Hydra's get_sanitized_cfg(cfg, "job"), as YAML
+        clean = copy.deepcopy(cfg)
+        with flag_override(clean, ["struct", "readonly"], [False, False]):
+            del clean["hydra"]
+        return OmegaConf.to_yaml(clean)
+
+    values = {"APP_CONFIG_GROUPS": lambda: listing(False), "HYDRA_CONFIG_GROUPS": lambda: listing(True), "CONFIG": job}
+    wanted = set(template.get_identifiers())
+    if not wanted <= values.keys():
+        return False
+    print(template.substitute({name: values[name]() for name in wanted}))
+    return True
 
 
 def _hint(message: str) -> str:
@@ -202,6 +268,12 @@ def _register_launcher() -> None:
 
     if ZrpGaLauncher not in Plugins.instance().discover(Launcher):
         Plugins.instance().register(ZrpGaLauncher)
+    from hydra.plugins.sweeper import Sweeper
+
+    from hydra_plugins.zrp_ga_sweeper.sweeper import ZrpGaSweeper  # hydra/sweeper=zrp_ga
+
+    if ZrpGaSweeper not in Plugins.instance().discover(Sweeper):
+        Plugins.instance().register(ZrpGaSweeper)
 
 
 def _stop(signum: int, frame: Any) -> None:
