@@ -331,6 +331,14 @@ PLANTS: list[dict] = [
     dict(name="warning-per-job", file="zrp_ga/run/assembly.py",
          old="    return text and of_kind\n", new="    return True\n", tests=[f"{CONSOLE}::test_a_sweep_says_each_warning_once_not_per_job"],
          what="warnings: every job of a sweep says the same warning again"),
+    dict(name="terms-joint-twice", file="zrp_ga/model/terms.py",
+         old="        if int(v) in out:  # two genes of one effect", new="        if False:  # two genes of one effect",
+         tests=["tests/test_terms.py::test_bad_terms_settings_are_one_line_naming_the_key"],
+         what="problem.terms: a joint named twice accepted (two genes of one effect, neither identifiable)"),
+    dict(name="hydra-job-line-shown", file="zrp_ga/cli/main.py",
+         old='    PREFIX = "Error executing job with overrides: "', new='    PREFIX = "(never written)"',
+         tests=["tests/test_faults.py::test_a_jobs_error_is_our_one_line_without_hydras"],
+         what="a job's error (a full disk) printed as Hydra's 'Error executing job with overrides' line and ours"),
 ]
 
 
