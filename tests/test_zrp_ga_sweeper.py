@@ -96,8 +96,7 @@ def _sweep(where: Path, *args: str) -> subprocess.CompletedProcess:
 
 
 def test_the_sweepers_jobs_write_what_the_basic_sweepers_write(tmp_path):
-    """zrp_ga's sweeper, -m's default (conf/hydra/sweeper/grid.yaml), against Hydra's basic sweeper."""
-    ours, basic = _sweep(tmp_path / "ours"), _sweep(tmp_path / "basic", "hydra/sweeper=basic")
+    ours, basic = _sweep(tmp_path / "ours", "hydra/sweeper=zrp_ga"), _sweep(tmp_path / "basic")
     assert ours.returncode == 0 and basic.returncode == 0, ours.stderr[-2000:] + basic.stderr[-2000:]
     assert "Warning" not in ours.stderr, ours.stderr
     assert (tmp_path / "ours" / "multirun.yaml").is_file()
@@ -108,7 +107,7 @@ def test_the_sweepers_jobs_write_what_the_basic_sweepers_write(tmp_path):
         ho, hb = (OmegaConf.load(x / ".hydra/hydra.yaml").hydra for x in (o, b))
         for h in (ho, hb):  # what differs by design: the sweeper and the sweep directory
             h.sweeper, h.sweep.dir, h.runtime.output_dir, h.overrides.hydra = None, None, None, None
-            assert h.runtime.choices.pop("hydra/sweeper") == ("grid" if h is ho else "basic")
+            assert h.runtime.choices.pop("hydra/sweeper") == ("zrp_ga" if h is ho else "basic")
         assert OmegaConf.to_yaml(ho) == OmegaConf.to_yaml(hb)
 
 

@@ -27,6 +27,7 @@ from typing import Any
 import hydra
 from omegaconf import DictConfig
 
+import hydra_plugins.zrp_ga_sweeper.sweeper  # noqa: F401  hydra/sweeper=zrp_ga stored, also where main() is called without cli()
 from zrp_ga import config
 from zrp_ga.core.errors import one_line
 

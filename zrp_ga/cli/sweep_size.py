@@ -3,7 +3,7 @@ starts (:mod:`zrp_ga.run.budget`): :class:`zrp_ga.cli.callbacks.Manifest` calls 
 as the sweep begins, so that a sweep too big for its machine, container or job is refused with
 one line and no directory, not job by job after the first ones ran.
 
-The jobs are those of Hydra's basic sweeper: its ``hydra.sweeper.params`` and the command
+The jobs are those of Hydra's basic sweeper (and of zrp_ga's, ``-m``'s default, which expands the same grid): its ``hydra.sweeper.params`` and the command
 line's overrides, every combination of their values (as ``BasicSweeper.split_arguments``
 forms them). Only the overrides that can change a run's size are combined: those of the
 operators, the seed and the run's bookkeeping (:data:`SIZELESS`) cannot, so a sweep over
@@ -25,6 +25,7 @@ from hydra.core.override_parser.types import OverrideType
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 BASIC_SWEEPER = ".BasicSweeper"  # the end of Hydra's basic sweeper's _target_ (a private module's name: not imported)
+GRID_SWEEPERS = (BASIC_SWEEPER, ".ZrpGaSweeper")  # zrp_ga's (hydra_plugins/zrp_ga_sweeper): the basic sweeper's grid
 SIZELESS = ("seed", "progress", "checkpoint_every", "objective", "resume", "selection", "crossover", "mutation",
             "inversion", "rotation", "refine")  # fmt: skip
 
@@ -44,7 +45,7 @@ def jobs(config: DictConfig) -> Iterator[tuple[str, DictConfig]]:
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     sweeper = config.hydra.sweeper
-    if not str(getattr(sweeper, "_target_", "")).endswith(BASIC_SWEEPER):
+    if not str(getattr(sweeper, "_target_", "")).endswith(GRID_SWEEPERS):
         yield "", config
         return
     params = [f"{k}={v}" for k, v in (getattr(sweeper, "params", None) or {}).items()]
