@@ -123,3 +123,47 @@ def test_a_study_run_continued_from_its_checkpoint_removes_it_at_the_end(runs, t
     sweep_job(job, Cache())
     assert _files(out) == STUDY
     assert _rows(out) == _rows(runs["single"] / "0")
+
+
+def test_loading_a_study_run_says_how_to_get_its_files(runs):
+    """zrp_ga.load on a run without robot files because of outputs=study: one line naming the
+    setting and the command that writes them (the job's overrides from the sweep's manifest)."""
+    import zrp_ga
+
+    with pytest.raises(ValueError) as e:
+        zrp_ga.load(runs["alone"] / "0")  # a sweep's job, outputs=auto
+    msg = str(e.value)
+    assert "\n" not in msg and msg.startswith(f"{runs['alone'] / '0'}: written with outputs=auto, which is outputs=study in a sweep")
+    assert msg.endswith("run `zrp-ga seed=0` alone, or the sweep with outputs=full")
+    with pytest.raises(ValueError, match=r"written with outputs=study .*run it again with outputs=full"):
+        zrp_ga.load(runs["single_study"] / "1")
+    with pytest.raises(ValueError, match=r"a sweep directory\? give one of its jobs"):
+        zrp_ga.load(runs["alone"])
+    assert zrp_ga.load(runs["full"] / "1").summary["config"]["outputs"] == "full"  # the same sweep in full loads
+
+
+def test_loading_a_made_up_study_run_reads_its_setting_and_overrides(tmp_path):
+    import yaml
+
+    import zrp_ga
+
+    def run(name: str, summary: dict | None, hydra_config: dict | None = None, overrides: list | None = None) -> Path:
+        d = tmp_path / name
+        (d / ".hydra").mkdir(parents=True)
+        if summary is not None:
+            (d / directory.SUMMARY).write_text(json.dumps(summary))
+        if hydra_config is not None:
+            (d / ".hydra" / "config.yaml").write_text(yaml.safe_dump(hydra_config))
+        if overrides is not None:
+            (d / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(overrides))
+        return d
+
+    over = ["algorithm=lm", "seed=3", "outputs=study", "problem.name=a b"]
+    with pytest.raises(ValueError, match=r"written with outputs=study .*run `zrp-ga algorithm=lm seed=3 'problem.name=a b'` alone"):
+        zrp_ga.load(run("study", {"config": {"outputs": "study"}}, overrides=over))
+    with pytest.raises(ValueError, match=r"written with outputs=study .*run `zrp-ga seed=3` alone"):
+        zrp_ga.load(run("hydra_only", None, {"outputs": "study"}, ["seed=3"]))  # no summary: Hydra's record
+    for name, summary, conf in (("full", {"config": {"outputs": "full"}}, None), ("auto_hydra", None, {"outputs": "auto"}),
+                                ("written", {"config": {"outputs": "study"}, "calibrated_robot": {}}, None)):  # fmt: skip
+        with pytest.raises(ValueError, match=r"not a calibration run directory \(no calibrated_robot.yaml\)$"):
+            zrp_ga.load(run(name, summary, conf))

@@ -106,7 +106,7 @@ def reference_sentence(a: dict | None) -> list[str]:
         often = (f"; {a['within']} of its {count(a['runs'], 'run')} {'comes' if a['within'] == 1 else 'come'} within {pct(a['tol'])} of LM's cost, in a median of "
                  f"{num(a['evals'], ',.0f')} evaluations against {lm_evals}")  # fmt: skip
     verdict = {stats.WORSE: "worse than LM", stats.BETTER: "better than LM", stats.EQUIVALENT: "equivalent to LM",
-               stats.UNDECIDED: "undecided against LM"}.get(a.get("verdict"), "")  # fmt: skip
+               stats.UNDECIDED: "undecided against LM"}.get(a.get("verdict", ""), "")  # fmt: skip
     tail = f" Verdict: {verdict}{paren(*_decided_by(a))}." if verdict else ""
     first = f"Against Levenberg-Marquardt, the reference{on}: the best configuration, {a['best']}, {cost}{val}{often}.{tail}"
     rest = a["all_runs"] - a["runs"]

@@ -25,6 +25,7 @@ import textwrap
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import matplotlib
 import numpy as np
@@ -34,17 +35,34 @@ from matplotlib.ticker import FuncFormatter, MaxNLocator, NullFormatter
 
 from zrp_ga.report.runs import Run
 
+if TYPE_CHECKING:
+    from matplotlib.typing import RcKeyType
+
 COST_LABEL = "best cost (residual 2-norm)"
 COST_NOTE = ("The cost is the 2-norm of the residual, which stacks orientation errors (rad) and position errors (m) "
              "as the problem weighs them: it has no single unit.")  # fmt: skip
-_PAPER_RC = {"font.size": 8, "axes.titlesize": 9, "axes.labelsize": 8, "xtick.labelsize": 8, "ytick.labelsize": 8,
+_PAPER_RC: dict[RcKeyType, Any] = {"font.size": 8, "axes.titlesize": 9, "axes.labelsize": 8, "xtick.labelsize": 8, "ytick.labelsize": 8,
              "legend.fontsize": 8, "legend.title_fontsize": 8, "lines.linewidth": 1.0, "lines.markersize": 3.5,
              "axes.linewidth": 0.6}  # fmt: skip
-_SCREEN_RC = {"font.size": 10, "axes.titlesize": 10, "axes.labelsize": 10, "xtick.labelsize": 10, "ytick.labelsize": 10,
+_SCREEN_RC: dict[RcKeyType, Any] = {"font.size": 10, "axes.titlesize": 10, "axes.labelsize": 10, "xtick.labelsize": 10, "ytick.labelsize": 10,
               "legend.fontsize": 10, "legend.title_fontsize": 10, "lines.linewidth": 1.5, "lines.markersize": 5}  # fmt: skip
+
+
+class Style(TypedDict):
+    """A style's sizes (inches: a column's and a page's width, the axes' height, a legend
+    line's height), its matplotlib settings and the characters a legend label holds a line."""
+
+    width: float
+    wide: float
+    axes: float
+    line: float
+    rc: dict[RcKeyType, Any]
+    chars: int
+
+
 STYLES = {
-    "paper": dict(width=3.5, wide=7.16, axes=1.9, line=0.15, rc=_PAPER_RC, chars=52),
-    "screen": dict(width=7.0, wide=10.0, axes=3.2, line=0.19, rc=_SCREEN_RC, chars=90),
+    "paper": Style(width=3.5, wide=7.16, axes=1.9, line=0.15, rc=_PAPER_RC, chars=52),
+    "screen": Style(width=7.0, wide=10.0, axes=3.2, line=0.19, rc=_SCREEN_RC, chars=90),
 }  # fmt: skip
 _STYLE = {"name": "paper"}
 MAX_LINES = 8  # configurations drawn in one axes before only the best are
@@ -54,7 +72,7 @@ MAX_LINES = 8  # configurations drawn in one axes before only the best are
 PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#882255", "#7F7F7F")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 DASHES = ("-", "--", "-.", ":")
-REFERENCE = dict(color="black", ls=(0, (6, 2)), marker="*", lw=1.6)
+REFERENCE: dict[str, Any] = dict(color="black", ls=(0, (6, 2)), marker="*", lw=1.6)
 
 
 @contextlib.contextmanager
@@ -188,7 +206,7 @@ def convergence_runs(chosen: list[tuple[str, Run]], total: int, instance: str, f
     title = f"median run of {shown}"
     fig = Figure(figsize=(width(), height([lab for lab, _ in chosen], title=True)), layout="constrained")
     ax = fig.subplots()
-    values = []
+    values: list[float] = []
     for (label, run), st in zip(chosen, styles(len(chosen))):
         best = np.where(np.isfinite(run.columns["best"]), run.columns["best"], np.nan)
         if math.isfinite(floor) and floor > 0:
@@ -398,7 +416,7 @@ def _rank_strip(result: dict, names: list[str], out: Path, formats: tuple[str, .
 
 def _demsar(result: dict, names: list[str], out: Path, formats: tuple[str, ...], page: bool) -> str:
     r, cd, k = result["mean_ranks"].to_numpy(), result["cd"], len(result["mean_ranks"])
-    cliques = []
+    cliques: list[tuple[int, int]] = []
     for i in range(k):
         j = int(np.searchsorted(r, r[i] + cd, side="right")) - 1  # the last within CD of r[i]
         if j > i and not any(a <= i and j <= b for a, b in cliques):

@@ -34,6 +34,7 @@ import warnings
 
 import numpy as np
 import pandas as pd
+from numpy.typing import ArrayLike
 from scipy import stats
 
 from zrp_ga.report.common import ALPHA
@@ -48,7 +49,7 @@ RESAMPLES = 2000
 BATCH_NUMBERS = 1_000_000  # numbers a bootstrap batch resamples at once (8 MB a copy), whatever the sample sizes
 
 
-def holm(p: np.ndarray) -> np.ndarray:
+def holm(p: ArrayLike) -> np.ndarray:
     """Holm's step-down adjusted p-values. By hand: scipy.stats has Benjamini-Hochberg
     (``false_discovery_control``) but not Holm, and statsmodels would be a dependency for six lines.
 
@@ -245,7 +246,8 @@ def effect_ci(x: np.ndarray, y: np.ndarray, paired: bool, tol: float = 0.0, leve
     ``tol``), in batches of at most ``BATCH_NUMBERS`` numbers."""
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     if paired:
-        return tuple(float(v[0]) for v in paired_cis(np.atleast_2d(y - x), tol, level, resamples))
+        los, his = paired_cis(np.atleast_2d(y - x), tol, level, resamples)
+        return float(los[0]), float(his[0])
     both = snap(np.concatenate([x, y]), tol)
     x, y = both[: len(x)], both[len(x):]
     if len(x) < 2 or len(y) < 2 or np.ptp(both) == 0:
@@ -304,6 +306,7 @@ def _omnibus(paired: bool, groups: dict[str, pd.Series], table: pd.DataFrame | N
     (the pooled values snapped), with the verdict ``equivalent`` when every value lies within
     ``tol`` of every other, ``differ`` at p < alpha (before any correction), else ``undecided``."""
     if paired:
+        assert table is not None  # _usable gives a paired design its table
         values = np.apply_along_axis(snap, 1, table.to_numpy(), tol)
         constant = bool((np.ptp(values, axis=1) == 0).all())  # every block a tie: scipy divides by zero
         stat, p = (0.0, 1.0) if constant else stats.friedmanchisquare(*values.T)
@@ -336,6 +339,7 @@ def compare_design(groups: dict[str, pd.Series], best: str | None = None, ci: bo
     wanted = [ci and (best is None or best in pair) for pair in pairs]
     found = []
     if paired and pairs:
+        assert table is not None  # _usable gives a paired design its table
         col = {c: k for k, c in enumerate(table.columns)}
         values = table.to_numpy()
         ia, ib = np.array([col[a] for a, _ in pairs]), np.array([col[b] for _, b in pairs])
@@ -350,10 +354,11 @@ def compare_design(groups: dict[str, pd.Series], best: str | None = None, ci: bo
     else:
         for (a, b), want in zip(pairs, wanted):
             x, y = groups[a].to_numpy(), groups[b].to_numpy()
-            lo, hi = effect_ci(x, y, False, tol) if want else (np.nan, np.nan)
-            found.append(dict(test="Mann-Whitney U", a=a, b=b, n_a=len(x), n_b=len(y), lo=lo, hi=hi, **_independent_pair(x, y, tol)))
-    p_holm = holm([f["p"] for f in found]) if found else []
-    eq_holm = holm([f["p_eq"] for f in found]) if found else []
+            ci_lo, ci_hi = effect_ci(x, y, False, tol) if want else (np.nan, np.nan)
+            found.append(dict(test="Mann-Whitney U", a=a, b=b, n_a=len(x), n_b=len(y), lo=ci_lo, hi=ci_hi,
+                              **_independent_pair(x, y, tol)))  # fmt: skip
+    p_holm: np.ndarray | list[float] = holm([f["p"] for f in found]) if found else []
+    eq_holm: np.ndarray | list[float] = holm([f["p_eq"] for f in found]) if found else []
     for f, ph, eh in zip(found, p_holm, eq_holm):
         rows.append(dict(design=PAIRED if paired else INDEPENDENT, test=ALL_TIED if f["tied"] else f["test"], a=f["a"], b=f["b"],
                          statistic=float(f["statistic"]), p=float(f["p"]), p_holm=float(ph), effect=float(f["effect"]),

@@ -5,9 +5,11 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
+from numpy.typing import ArrayLike
 
 from zrp_ga.report import compare, design, reference, stats, targets
 from zrp_ga.report.labels import configurations
@@ -28,11 +30,14 @@ def area_under_curve(conv, budget: float) -> float:
     return value if math.isfinite(value) else math.nan
 
 
-def quartiles(x) -> tuple[float, float, float]:
+def quartiles(x: ArrayLike) -> tuple[float, float, float]:
     """Median, first and third quartile of the finite values (NaN when none)."""
-    x = np.asarray(x, dtype=float)
-    x = x[np.isfinite(x)]
-    return tuple(float(v) for v in np.percentile(x, [50, 25, 75])) if len(x) else (math.nan,) * 3
+    values = np.asarray(x, dtype=float)
+    finite = values[np.isfinite(values)]
+    if not len(finite):
+        return (math.nan,) * 3
+    median, q1, q3 = np.percentile(finite, [50, 25, 75])
+    return float(median), float(q1), float(q3)
 
 
 def _per_run(runs: list[Run], labels: list[str], shown: dict, keys: list[str], floors: pd.DataFrame,
@@ -84,9 +89,11 @@ def _summary(runs_df: pd.DataFrame, ert_all: pd.DataFrame, rule: TargetRule) -> 
                    success_rate=len(reached) / len(g), nevals_median=float(g["nevals"].median()),
                    wall_s_median=quartiles(g.wall_s)[0], group=int(g["group"].iloc[0]), is_reference=bool(g["is_reference"].iloc[0]))  # fmt: skip
         for level in rule.names():
-            has = wide is not None and label in wide.index and ("ert", level) in wide.columns
-            row[f"success_{level}"] = float(wide.loc[label, ("success_rate", level)]) if has else math.nan
-            row[f"ert_{level}"] = float(wide.loc[label, ("ert", level)]) if has else math.nan
+            if wide is not None and label in wide.index and ("ert", level) in wide.columns:
+                row[f"success_{level}"] = float(wide.loc[label, ("success_rate", level)])
+                row[f"ert_{level}"] = float(wide.loc[label, ("ert", level)])
+            else:
+                row[f"success_{level}"] = row[f"ert_{level}"] = math.nan
         row.update(auc_median=quartiles(g.auc)[0], auc_budget=float(g.auc_budget.iloc[0]),
                    evals_to_common_median=quartiles(g[compare.EVALS])[0])
         out.append(row)
@@ -137,7 +144,7 @@ def rank_scores(runs_df: pd.DataFrame, asked: dict[str, dict]) -> tuple[pd.DataF
 def friedman_by_group(runs_df: pd.DataFrame, asked: dict[str, dict]) -> list[dict]:
     """Friedman's test across instances in each group of two or more configurations (or why
     not, in ``note``): {group, result or None, note}."""
-    out = []
+    out: list[dict[str, Any]] = []
     for group, g in runs_df.groupby("group", sort=True):
         scores, incomplete, tol = rank_scores(g, asked)
         k, n = g["configuration"].nunique(), len(scores)

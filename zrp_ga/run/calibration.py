@@ -28,6 +28,7 @@ import copy
 import dataclasses
 import functools
 import json
+import shlex
 import shutil
 import tempfile
 from pathlib import Path
@@ -417,7 +418,7 @@ class Calibration:
 def load(path: str | Path) -> Calibration:
     """The calibration saved in ``path`` (:meth:`Calibration.save`) or written there by a
     ``zrp-ga`` run: one ValueError naming what is missing or damaged (a sweep's directory: give
-    one of its jobs).
+    one of its jobs; a run written with ``outputs=study``, as a sweep's are: how to get its files).
 
     >>> import tempfile, zrp_ga
     >>> cal = zrp_ga.calibrate("puma560", problem={"n_poses": 30, "cost": "nonlinear"}, algorithm="lm")
@@ -453,13 +454,70 @@ def load(path: str | Path) -> Calibration:
 
 def check_run_dir(path: Path) -> None:
     """A ValueError unless ``path`` holds a calibration run's robot file and summary (a sweep
-    directory: one of its jobs named)."""
+    directory: one of its jobs named; a run written with ``outputs=study``: how to get its files)."""
     if (path / ROBOT_FILE).is_file() and (path / directory.SUMMARY).is_file():
         return
-    jobs = sorted(p.parent.name for p in path.glob(f"*/{ROBOT_FILE}"))
+    study = _study_run(path)
+    if study is not None:
+        raise ValueError(study)
+    jobs = sorted(p.parent.name for p in path.glob(f"*/{ROBOT_FILE}")) or sorted(p.parent.name for p in path.glob(f"*/{directory.SUMMARY}"))
     hint = f"; a sweep directory? give one of its jobs ({path / jobs[0]}, ...)" if jobs else ""
     missing = ROBOT_FILE if not (path / ROBOT_FILE).is_file() else directory.SUMMARY
     raise ValueError(f"{path}: not a calibration run directory (no {missing}){hint}")
+
+
+def _study_run(path: Path) -> str | None:
+    """Why ``path`` holds no robot files when it was written with ``outputs=study`` (a sweep's
+    run by default, ``outputs=auto``: its summary.json without ``calibrated_robot``; or Hydra's
+    ``.hydra/config.yaml`` when there is no summary), with the command that writes them: the
+    run's overrides alone (``.hydra/overrides.yaml``, else its sweep's manifest), or the sweep
+    with ``outputs=full``. None for any other directory."""
+    if (path / ROBOT_FILE).is_file():
+        return None
+    outputs: object = None
+    if (path / directory.SUMMARY).is_file():
+        try:
+            s = directory.read_summary(path)
+        except (OSError, ValueError):
+            return None
+        conf = s.get("config") if isinstance(s, dict) and "calibrated_robot" not in s else None
+        outputs = conf.get("outputs") if isinstance(conf, dict) else None
+    else:  # no summary: Hydra's record; outputs=auto is full in a single run, study in a sweep: unknown here
+        conf = _yaml(path / ".hydra" / "config.yaml")
+        outputs = "study" if isinstance(conf, dict) and conf.get("outputs") == "study" else None
+    if outputs not in ("study", "auto"):
+        return None
+    how = "outputs=study" if outputs == "study" else "outputs=auto, which is outputs=study in a sweep"
+    overrides = [o for o in _overrides(path) if not o.lstrip("+~").startswith(("outputs=", "hydra.", "progress="))]
+    again = (f"run `zrp-ga {shlex.join(overrides)}` alone, or the sweep with outputs=full" if overrides else
+             "run it again with outputs=full (a sweep's job: its overrides alone, from the sweep's manifest.csv)")  # fmt: skip
+    return f"{path}: written with {how} (a study's files, no {ROBOT_FILE}); for the calibrated arm's files {again}"
+
+
+def _overrides(path: Path) -> list[str]:
+    """The command-line overrides of the run in ``path``: Hydra's record, else its sweep's manifest."""
+    recorded = _yaml(path / ".hydra" / "overrides.yaml")
+    if isinstance(recorded, list):
+        return [str(o) for o in recorded]
+    if (path.parent / directory.MANIFEST).is_file():
+        try:
+            jobs = directory.job_states(path.parent)
+        except (OSError, ValueError, TypeError):
+            return []
+        for job in jobs:
+            if job.get("dir") == path.name and job.get("overrides"):
+                return str(job["overrides"]).split(" ")  # the manifest joins them with spaces
+    return []
+
+
+def _yaml(path: Path) -> Any:
+    """A YAML file's content; None when it is missing or not YAML."""
+    import yaml
+
+    try:
+        return yaml.safe_load(path.read_text())
+    except (OSError, ValueError, yaml.YAMLError):
+        return None
 
 
 def _summary_damage(path: Path) -> str | None:

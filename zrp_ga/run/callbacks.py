@@ -186,7 +186,7 @@ class ConvergenceLog(Callback):
         self._file.close()
 
 
-def write_rows(path: str | Path, rows: list[dict]) -> None:
+def write_rows(path: str | Path, rows: Sequence[Row]) -> None:
     """``convergence.csv`` of a finished run from its rows (:attr:`zrp_ga.algorithms.Result.rows`),
     the lines :class:`ConvergenceLog` writes as the run goes (a calibration saved after the fact)."""
     with open(path, "w", newline="") as f:
