@@ -54,3 +54,27 @@ def test_figures_drawn_by_other_processes_give_the_report_drawn_here(tmp_path, m
     for name in files:
         assert files[name] == files_here[name], name
     assert page.count("<svg") >= 5 and page == page_here
+
+
+HANDLER_SET = r"""
+import signal, sys
+from zrp_ga.report import drawing
+
+signal.signal(signal.SIGTERM, lambda *_: print("SIGTERM handled", file=sys.stderr))  # as zrp-ga's own: no exit
+print(drawing._each(lambda spec: f"figure {spec['k']}", [{"k": k} for k in range(4)]))
+"""
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="one core: the figures are drawn in the process itself")
+def test_a_process_that_handles_sigterm_gets_its_figures_and_ends():
+    """A process with a SIGTERM handler of its own (zrp-ga turns SIGTERM into Ctrl-C; the test
+    suite's process had one from a test before) hands it to the forked children: ended by the
+    pool's SIGTERM, a child that had not yet taken the default back outlived it, and the report
+    waited for it forever (the whole test suite hung there once)."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-c", HANDLER_SET], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip() == str([f"figure {k}" for k in range(4)])
+    assert "SIGTERM handled" not in proc.stderr  # no signal reached a child with the inherited handler

@@ -126,14 +126,33 @@ def _each(work: Callable[[dict], str], specs: list[dict], meanwhile: Callable[[]
             meanwhile()
         return [work(spec) for spec in specs]
     _WORK[:] = [functools.partial(work, spec) for spec in specs]
+    pool = multiprocessing.get_context("fork").Pool(min(cores, len(specs)), initializer=_plain_signals)
     try:
-        with multiprocessing.get_context("fork").Pool(min(cores, len(specs))) as pool:
-            drawn = pool.map_async(_one, range(len(specs)), chunksize=1)
-            if meanwhile is not None:
-                meanwhile()
-            return drawn.get()
+        drawn = pool.map_async(_one, range(len(specs)), chunksize=1)
+        if meanwhile is not None:
+            meanwhile()
+        figures = drawn.get()
+    except BaseException:
+        pool.terminate()  # the children take SIGTERM as its default (_plain_signals)
+        raise
+    else:
+        # Done: the children end on their own (close, join). A process that handles SIGTERM
+        # itself (zrp-ga turns it into Ctrl-C; a caller may have a handler of its own) hands
+        # that handler to the forked children, and a child still starting could outlive the
+        # pool's SIGTERM: the join would wait for it forever.
+        pool.close()
+        pool.join()
+        return figures
     finally:
         _WORK.clear()
+
+
+def _plain_signals() -> None:
+    """In a drawing child: the default SIGTERM and no SIGINT (the parent handles Ctrl-C)."""
+    import signal
+
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 WIDE = ("ecdf_by_instance", "main_effects", "critical_difference")  # drawn a page wide: on screen as they are, enlarged
