@@ -255,3 +255,20 @@ def test_the_command_line_builds_a_run_once(tmp_path, monkeypatch, capsys):
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["choices"]["crossover"] == "sbx" and summary["choices"]["problem"] == "paper"
     assert f"results in {tmp_path / 'run'}\n" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, said", [(["-m", "seed=0,1"], "continue with the same command"),
+                                        (["hydra.mode=MULTIRUN", "seed=0,1"], "continue with the same command"),
+                                        (["seed=3"], "stopped before the run started: nothing to continue")])  # fmt: skip
+def test_ctrl_c_before_hydra_knows_the_run_says_what_to_do(monkeypatch, argv, said):
+    """Ctrl-C in a sweep's own process (its jobs run in workers) or before Hydra set the run up:
+    no placeholder for a run directory there is none of ("continue with  zrp-ga resume=the run
+    directory", as a sweep stopped at its start printed)."""
+    from hydra.core.hydra_config import HydraConfig
+
+    from zrp_ga.cli import main
+
+    monkeypatch.setattr(HydraConfig, "initialized", staticmethod(lambda: False))
+    monkeypatch.setattr(sys, "argv", ["zrp-ga", *argv])
+    text = main._continue_with()
+    assert said in text and "resume=" not in text and "  " not in text

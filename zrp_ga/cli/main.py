@@ -249,12 +249,20 @@ def _continue_with() -> str:
         sweep = hc.sweep.dir
         return (f"the finished jobs are kept in {sweep} and the interrupted ones continue from their checkpoints: "
                 f"continue with the same command and hydra.sweep.dir={sweep}")  # fmt: skip
-    where: Any = "the run directory"
-    if hc is not None:
-        resumed = [o.split("=", 1)[1] for o in hc.overrides.task if o.startswith("resume=")]
-        where = Path(resumed[-1]).expanduser() if resumed else hc.runtime.output_dir
+    if hc is None:  # a sweep's own process (its jobs run elsewhere), or a run stopped before Hydra set it up
+        if _multirun(sys.argv[1:]):
+            return ("the finished jobs are kept in the sweep's folder and the interrupted ones continue from their "
+                    "checkpoints: continue with the same command (and the same hydra.sweep.dir, if it named one)")  # fmt: skip
+        return "stopped before the run started: nothing to continue; run the command again"
+    resumed = [o.split("=", 1)[1] for o in hc.overrides.task if o.startswith("resume=")]
+    where = Path(resumed[-1]).expanduser() if resumed else hc.runtime.output_dir
     return (f"the checkpoint and convergence.csv in {where} are complete up to the last finished generation: "
-            f"continue with  zrp-ga resume={where}")  # fmt: skip
+            f"continue with zrp-ga resume={where}")  # fmt: skip
+
+
+def _multirun(args: list[str]) -> bool:
+    """Whether the command line asks for a sweep (``-m``, ``--multirun``, ``hydra.mode=MULTIRUN``)."""
+    return any(a in ("-m", "--multirun") or a.replace(" ", "") == "hydra.mode=MULTIRUN" for a in args)
 
 
 def _register_launcher() -> None:
