@@ -167,3 +167,15 @@ def test_loading_a_made_up_study_run_reads_its_setting_and_overrides(tmp_path):
                                 ("written", {"config": {"outputs": "study"}, "calibrated_robot": {}}, None)):  # fmt: skip
         with pytest.raises(ValueError, match=r"not a calibration run directory \(no calibrated_robot.yaml\)$"):
             zrp_ga.load(run(name, summary, conf))
+
+
+def test_resuming_a_finished_study_run_says_it_is_finished(runs):
+    """resume= on a sweep's finished run (no checkpoint kept): one line saying so, not 'no
+    checkpoint there'; the command line's path (build.prepare with resume=)."""
+    from zrp_ga.core.schema import ConfigError
+    from zrp_ga.run import build
+
+    run = runs["alone"] / "0"
+    with pytest.raises(ConfigError, match=r"^resume: .* is a finished run written without its final checkpoint .*"
+                                          r"nothing to continue; its results are in .*summary\.json$"):  # fmt: skip
+        build.prepare(config.load([f"resume={run}"]), None, overrides=[f"resume={run}"])

@@ -159,6 +159,9 @@ def _resume(resume: str, overrides: Sequence[str]) -> tuple[Path, State, Config]
     if others:
         raise ConfigError(f"resume: a run continues with its own config; drop {' '.join(others)} "
                           "(or start a new run with them)")  # fmt: skip
+    if not (out / directory.CHECKPOINT).exists() and directory.status(out) == "done":
+        raise ConfigError(f"resume: {out} is a finished run written without its final checkpoint (a sweep's run, "
+                          f"outputs=study): nothing to continue; its results are in {out / directory.SUMMARY}")  # fmt: skip
     state = checkpoint.load(out / directory.CHECKPOINT)
     return out, state, typed(state.pop("config"))
 
