@@ -203,3 +203,23 @@ def test_without_fcntl_every_module_imports_and_a_directory_in_use_is_refused(tm
     refused = f"{out}: another run (process {pid}) is writing into this directory; wait for it to end or choose another directory"
     assert lines[1:3] == [refused, refused]  # from this process, then from another
     assert lines[3] == "locked" and lines[4] == "done True"  # released: the lock is taken, and a run goes ahead
+
+
+@pytest.mark.parametrize("exc, state", [(KeyboardInterrupt(), "interrupted"), (RuntimeError("boom\nmore"), "failed")])
+def test_a_stopped_jobs_state_reaches_manifest_csv(tmp_path, exc, state):
+    """At Ctrl-C no end-of-job callback rewrites manifest.csv: the stop itself does, so that the
+    table does not say "running" for a job the manifest (and its status.json) say interrupted."""
+    import csv
+
+    from zrp_ga.run import assembly
+    from zrp_ga.run.directory import Sweep
+
+    jobs = [Sweep(tmp_path, k, (f"seed={k}",), str(k)) for k in range(2)]
+    directory.record(jobs[0], "done")
+    directory.record(jobs[1], "running")
+    directory.write_table(tmp_path)
+    assembly.stopped(None, jobs[1], exc)
+    with open(tmp_path / directory.TABLE, newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["job"], r["status"]) for r in rows] == [("0", "done"), ("1", state)]
+    assert state != "failed" or rows[1]["error"] == "RuntimeError: boom"

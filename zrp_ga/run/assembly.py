@@ -198,3 +198,6 @@ def record_stop(sweep: Sweep, exc: BaseException) -> None:
             directory.record(sweep, "interrupted", INTERRUPTED)
         else:
             directory.record(sweep, "failed", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
+        # manifest.csv too: at Ctrl-C no end-of-job or end-of-sweep callback rewrites it, and it
+        # said "running" for jobs the manifest recorded interrupted
+        directory.write_table(sweep.dir)
