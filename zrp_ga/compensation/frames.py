@@ -85,7 +85,7 @@ def work_object(origin: ArrayLike, on_x: ArrayLike, in_xy: ArrayLike) -> Array:
         raise ValueError("work object: the points O and X coincide")
     x = ox / np.linalg.norm(ox)
     z = np.cross(x, oy)
-    if np.linalg.norm(z) < 1e-6 * max(np.linalg.norm(oy), 1e-6) or np.linalg.norm(oy) < 1e-6:
+    if np.linalg.norm(z) < 1e-6 * max(float(np.linalg.norm(oy)), 1e-6) or np.linalg.norm(oy) < 1e-6:
         raise ValueError("work object: the points O, X and Y lie on one line; Y must be off the x axis")
     z /= np.linalg.norm(z)
     return transform(np.column_stack([x, np.cross(z, x), z]), o)
