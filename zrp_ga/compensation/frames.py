@@ -27,6 +27,7 @@ coordinates in the frame it is given in (``p_outer = T[:3, :3] p + T[:3, 3]``).
 from __future__ import annotations
 
 import dataclasses
+from typing import overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -51,6 +52,12 @@ def inverse(T: Array) -> Array:
     return transform(T[:3, :3].T, -T[:3, :3].T @ T[:3, 3])
 
 
+@overload
+def apply(T: Array, p: Array, R: None = None) -> tuple[Array, None]: ...
+@overload
+def apply(T: Array, p: Array, R: Array) -> tuple[Array, Array]: ...
+@overload
+def apply(T: Array, p: Array, R: Array | None) -> tuple[Array, Array | None]: ...
 def apply(T: Array, p: Array, R: Array | None = None) -> tuple[Array, Array | None]:
     """Positions (M, 3) and rotations (M, 3, 3) or None given in frame ``T``, in ``T``'s outer frame."""
     return p @ T[:3, :3].T + T[:3, 3], None if R is None else T[:3, :3] @ R
