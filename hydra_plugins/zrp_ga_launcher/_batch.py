@@ -47,7 +47,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf, open_dict, read_write
 log = logging.getLogger(__name__)
 
 
-def run_batch(jobs: list[tuple[int, DictConfig]], hydra_context: HydraContext, task_function: TaskFunction) -> list[JobReturn]:
+def run_batch(jobs: list[tuple[int, DictConfig | bytes]], hydra_context: HydraContext, task_function: TaskFunction) -> list[JobReturn]:
     """Run the sweep's jobs ``(job number, composed config or its pickle)``, their runs together; a
     ``JobReturn`` per job, in order, as Hydra's ``run_job`` makes it. Raises KeyboardInterrupt
     (at Ctrl-C) once every job recorded its state."""
@@ -469,7 +469,7 @@ class _Job:
 
 
 class _Batch:
-    def __init__(self, jobs: list[tuple[int, DictConfig]], hydra_context: HydraContext, task_function: TaskFunction):
+    def __init__(self, jobs: list[tuple[int, DictConfig | bytes]], hydra_context: HydraContext, task_function: TaskFunction):
         self.jobs = [_Job(idx, cfg) for idx, cfg in jobs]
         self.hydra_context, self.task_function = hydra_context, task_function
 
