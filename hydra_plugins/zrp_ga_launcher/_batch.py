@@ -47,7 +47,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf, open_dict, read_write
 log = logging.getLogger(__name__)
 
 
-def run_batch(jobs: list[tuple[int, DictConfig]], hydra_context: HydraContext, task_function: TaskFunction) -> list[JobReturn]:
+def run_batch(jobs: list[tuple[int, DictConfig | bytes]], hydra_context: HydraContext, task_function: TaskFunction) -> list[JobReturn]:
     """Run the sweep's jobs ``(job number, composed config or its pickle)``, their runs together; a
     ``JobReturn`` per job, in order, as Hydra's ``run_job`` makes it. Raises KeyboardInterrupt
     (at Ctrl-C) once every job recorded its state."""
@@ -367,12 +367,19 @@ def _resolved(config: DictConfig, raw: Any, path: str) -> Any:
     if next(_interpolations(raw), None) is None and not (isinstance(raw, str) and raw == "???"):
         return raw
     instance = HydraConfig.instance()
-    before, instance.cfg = instance.cfg, config
+    before, instance.cfg = instance.cfg, config  # type: ignore[assignment]  # Hydra's view of a job is a DictConfig: HydraConfig.set_config stores one too (its cfg is annotated HydraConf)
     try:
         value = OmegaConf.select(config, path)
         return OmegaConf.to_container(value, resolve=True) if isinstance(value, (DictConfig, ListConfig)) else value
     finally:
         instance.cfg = before
+
+
+def _container(node: DictConfig) -> dict[Any, Any]:
+    """``OmegaConf.to_container(node, resolve=True)`` of a dict node (``hydra.job_logging``)."""
+    value = OmegaConf.to_container(node, resolve=True)
+    assert isinstance(value, dict)  # a DictConfig's container is a dict
+    return value
 
 
 def _without_hydra(config: DictConfig) -> DictConfig:
@@ -395,7 +402,8 @@ class _Job:
         self.out = Path()
         self.logs: list[_JobLog] = []
         self.error: Exception | None = None
-        self.chdir, self.env = False, {}
+        self.chdir = False
+        self.env: dict[str, str] = {}  # hydra.job.env_set, resolved
         self.raw: dict = {}  # its config as a container (unresolved, enums as they are)
         self.hydra: dict = {}  # its hydra node, as a container (unresolved, enums as names)
         self.sweep_dir, self.subdir = "", ""  # hydra.sweep's, resolved
@@ -441,7 +449,7 @@ class _Job:
     def around(self) -> Iterator[None]:
         """Hydra's view of this job and its log file, while something is done for it alone."""
         instance = HydraConfig.instance()
-        before, instance.cfg = instance.cfg, self.config
+        before, instance.cfg = instance.cfg, self.config  # type: ignore[assignment]  # Hydra's view of a job is a DictConfig: HydraConfig.set_config stores one too (its cfg is annotated HydraConf)
         root = logging.getLogger()
         for h in self.logs:
             root.addHandler(h)
@@ -461,7 +469,7 @@ class _Job:
 
 
 class _Batch:
-    def __init__(self, jobs: list[tuple[int, DictConfig]], hydra_context: HydraContext, task_function: TaskFunction):
+    def __init__(self, jobs: list[tuple[int, DictConfig | bytes]], hydra_context: HydraContext, task_function: TaskFunction):
         self.jobs = [_Job(idx, cfg) for idx, cfg in jobs]
         self.hydra_context, self.task_function = hydra_context, task_function
 
@@ -506,15 +514,15 @@ class _Batch:
             configure_log(first.config.hydra.job_logging, first.config.hydra.verbose)
         if first.config.hydra.job_logging is None:
             return True
-        confs = []
+        confs: list[dict[Any, Any]] = []
         with first.around():
-            confs.append(OmegaConf.to_container(first.config.hydra.job_logging, resolve=True))
+            confs.append(_container(first.config.hydra.job_logging))
         raw = first.hydra["job_logging"]
         paths = list(_interpolations(raw))
         for job in ready[1:]:
             with job.around():
                 confs.append(_resolve(job.config.hydra.job_logging, confs[0], paths, raw, job.raw) if job.hydra["job_logging"] == raw
-                             else OmegaConf.to_container(job.config.hydra.job_logging, resolve=True))  # fmt: skip
+                             else _container(job.config.hydra.job_logging))  # fmt: skip
         root = logging.getLogger()
         handlers = {h.name: h for h in root.handlers if h.name}
         found = _job_logs(handlers, confs)
@@ -538,6 +546,7 @@ class _Batch:
         tasks = []
         for job in ready:
             with job.around():
+                assert job.ret.cfg is not None  # the task's config, set by prepare()
                 tasks.append(SweepJob(typed(job.ret.cfg), *_sweep_job_args(job)))
         return sweep_batch(tasks, around=lambda k: ready[k].around()) if tasks else []
 
@@ -550,6 +559,7 @@ class _Batch:
             ret.return_value, ret.status = value, JobStatus.FAILED
         else:
             try:
+                assert ret.overrides is not None  # set by prepare(), as the job ran
                 summary.console(job.out, (job.idx, " ".join(ret.overrides)))  # hydra.job.num
                 ret.return_value, ret.status = value, JobStatus.COMPLETED
             except Exception as exc:

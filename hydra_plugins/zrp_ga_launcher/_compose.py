@@ -139,8 +139,7 @@ class ComposingLoader(ConfigLoader):
         hydra_lines = list(master.hydra.overrides.hydra)
         cfg = self.loader.load_sweep_config(master, lines[len(hydra_lines) :])
         self.hydra_compositions += 1
-        composed = _Composed(pickle.dumps(cfg), list(lines), dict(options), str(master.hydra.job.config_name),
-                             OmegaConf.to_container(cfg.hydra.runtime.choices))  # fmt: skip
+        composed = _Composed(pickle.dumps(cfg), list(lines), dict(options), str(master.hydra.job.config_name), _choices(cfg))
         return cfg, composed
 
     def _defaults(self, c: _Composed) -> list[tuple]:
@@ -201,7 +200,7 @@ class ComposingLoader(ConfigLoader):
         cfg = None if key in self._templates else self._from_base(master_config, shape, options)
         if cfg is not None:  # kept for the jobs with the same options (other values: seeds): put together once
             self._templates[key] = _Composed(pickle.dumps(cfg), list(lines), dict(options), str(master_config.hydra.job.config_name),
-                                             OmegaConf.to_container(cfg.hydra.runtime.choices))  # fmt: skip
+                                             _choices(cfg))  # fmt: skip
         else:
             template = self._templates.get(key)  # perhaps composed on the way, as a group's variant
             if template is None:
@@ -229,7 +228,9 @@ class ComposingLoader(ConfigLoader):
 
     def _classify(self, overrides: list[Override]) -> tuple[Shape, dict[str, str], list[Override]]:
         """The shape of a job's overrides, its group options and its value overrides."""
-        shape, options, values = [], {}, []
+        shape: list[tuple[str, ...]] = []
+        options: dict[str, str] = {}
+        values: list[Override] = []
         for o in overrides:
             plain = (o.type == OverrideType.CHANGE and o.package is None and not o.is_hydra_override()
                      and not o.is_sweep_override())  # fmt: skip
@@ -241,7 +242,7 @@ class ComposingLoader(ConfigLoader):
                 shape.append(("value", o.key_or_group, type(value).__name__))
                 values.append(o)
             else:
-                shape.append(("line", o.input_line))
+                shape.append(("line", _line(o)))
         return tuple(shape), options, values
 
     def _from_base(self, master: DictConfig, shape: Shape, options: dict[str, str]) -> DictConfig | None:
@@ -257,11 +258,14 @@ class ComposingLoader(ConfigLoader):
             if base is None:
                 return None
         changed = [self._variant(master, shape, base, g, o) for g, o in options.items() if base.options[g] != o]
-        if any(v is None for v in changed) or not _disjoint([v.package for v in changed]):
+        # each with its package (_variant gives None for a variant that is not separable, and a package with any other)
+        separable = [(v, v.package) for v in changed if v is not None and v.package is not None]
+        if len(separable) < len(changed) or not _disjoint([package for _, package in separable]):
             return None
         cfg = pickle.loads(base.data)
-        for variant in changed:
-            _put(cfg, variant.package, OmegaConf.select(variant.config, variant.package))
+        for variant, package in separable:
+            assert variant.config is not None  # _make_variant keeps its composition
+            _put(cfg, package, OmegaConf.select(variant.config, package))
             group = next(g for g in options if variant.options[g] != base.options[g])
             cfg.hydra.runtime.choices[group] = variant.options[group]
         return cfg
@@ -342,7 +346,8 @@ class ComposingLoader(ConfigLoader):
             cfg.hydra.job.override_dirname = override_dirname(task, names.exclude_keys, names.item_sep, names.kv_sep)
 
 
-_FORKED: tuple | None = None  # what a forked process of ComposingLoader._prefetch composes from
+# what a forked process of ComposingLoader._prefetch composes from: the loader, master config, shape, base and (group, option)s
+_FORKED: tuple[ComposingLoader, DictConfig, Shape, _Composed, list[tuple[str, str]]] | None = None
 
 
 def _quiet_child() -> None:
@@ -353,6 +358,7 @@ def _quiet_child() -> None:
 
 
 def _make_in_child(k: int) -> _Composed:
+    assert _FORKED is not None  # set by _prefetch before it forks
     loader, master, shape, base, todo = _FORKED
     return loader._make_variant(master, shape, base, *todo[k])
 
@@ -377,8 +383,21 @@ def override_dirname(overrides: list[Override], exclude_keys: Any, item_sep: str
     """``hydra.job.override_dirname`` as Hydra 1.3 computes it: the task overrides but the
     excluded keys, sorted, joined by ``item_sep``, with ``kv_sep`` for ``=`` (Hydra's
     documentation, "Customizing working directory pattern")."""
-    lines = sorted(o.input_line for o in overrides if o.key_or_group not in exclude_keys)
+    lines = sorted(_line(o) for o in overrides if o.key_or_group not in exclude_keys)
     return re.sub("[=]", kv_sep, item_sep.join(lines))
+
+
+def _line(o: Override) -> str:
+    """The line an override was parsed from."""
+    assert o.input_line is not None  # Hydra's OverridesParser sets it on every override it parses
+    return o.input_line
+
+
+def _choices(cfg: DictConfig) -> dict[str, Any]:
+    """A composition's ``hydra.runtime.choices``, as a dict."""
+    choices = OmegaConf.to_container(cfg.hydra.runtime.choices)
+    assert isinstance(choices, dict)  # a DictConfig's container is a dict
+    return choices  # type: ignore[return-value]  # its keys are the groups' names, str; to_container types them DictKeyType
 
 
 def _inside(package: str, root: str) -> bool:

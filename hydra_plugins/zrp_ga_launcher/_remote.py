@@ -27,9 +27,9 @@ import math
 import pickle
 import signal
 import zlib
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.singleton import Singleton
@@ -177,7 +177,16 @@ class _Ray:
             self.ray.shutdown()
 
 
-EXECUTORS = {"slurm": _Slurm, "ray": _Ray}
+class _Executor(Protocol):
+    """What :func:`launch` asks of an executor (:class:`_Slurm`, :class:`_Ray`)."""
+
+    def submit(self, start: _Start, payload: list[list[tuple[int, bytes]]]) -> None: ...
+    def results(self) -> Iterator[tuple[int, Any]]: ...  # (batch number, its pickled returns or the error)
+    def cancel(self) -> None: ...
+    def close(self) -> None: ...
+
+
+EXECUTORS: dict[str, Callable[[Any], _Executor]] = {"slurm": _Slurm, "ray": _Ray}
 
 
 def _last_line(exc: BaseException) -> str:
@@ -217,8 +226,8 @@ def launch(launcher: Any, job_overrides: Sequence[Sequence[str]], initial_job_id
     groups = batches(keys, settings.runs_per_job)
     payload = [[(jobs[i][0], data[i]) for i in group] for group in groups]
     del data
-    start = _Start(HydraContext(config_loader=None, callbacks=launcher.hydra_context.callbacks),
-                   _workers._portable(launcher.task_function), Singleton.get_state()["instances"])  # fmt: skip
+    context = HydraContext(config_loader=None, callbacks=launcher.hydra_context.callbacks)  # type: ignore[arg-type]  # no config loader to send: the jobs come composed
+    start = _Start(context, _workers._portable(launcher.task_function), Singleton.get_state()["instances"])
     executor = EXECUTORS[_name(settings.executor)](settings)
     log.info(f"Launching {len(jobs)} jobs in {len(groups)} cluster jobs, sweep output dir : {sweep}")
     returns: dict[int, JobReturn] = {}
@@ -256,7 +265,7 @@ def _place(idx: int, cfg: DictConfig) -> Any:
     return directory.Sweep(Path(hc.sweep.dir), idx, tuple(hc.overrides.task), str(hc.sweep.subdir))
 
 
-def _fail(sweep: Path, jobs: list[tuple[int, list[str], Any]], error: Exception, returns: dict) -> None:
+def _fail(sweep: Path, jobs: list[tuple[int, list[str], Any]], error: BaseException, returns: dict) -> None:
     """The runs of a failed cluster job (``(number, overrides, place)``): those it had finished
     completed with the objective in their summary, as the run layer returns a kept run's; the
     others failed, with a ``failed`` manifest line."""

@@ -201,8 +201,9 @@ class Pool:
         spawned = method != "fork"
         if not spawned and settings.warm_up:  # once here, before the workers inherit it all
             _warm_up(settings.warm_up, config)
+        context = HydraContext(config_loader=None, callbacks=hydra_context.callbacks) if spawned else hydra_context  # type: ignore[arg-type]  # no config loader to send: a spawned worker's jobs come composed
         self.start = _Start(
-            HydraContext(config_loader=None, callbacks=hydra_context.callbacks) if spawned else hydra_context,
+            context,
             _portable(task_function) if spawned else task_function,
             config, settings.warm_up if spawned else None, os.getpid(), Singleton.get_state()["instances"] if spawned else None,
         )  # fmt: skip
@@ -211,7 +212,8 @@ class Pool:
 
     def _spawn(self) -> _Worker:
         here, there = self.context.Pipe()
-        process = self.context.Process(target=_serve, args=(there, self.start), daemon=True, name="zrp_ga-worker")
+        # every start method's context has Process; typeshed gives get_context(a str) their base class, which has not
+        process = self.context.Process(target=_serve, args=(there, self.start), daemon=True, name="zrp_ga-worker")  # type: ignore[attr-defined]
         process.start()
         there.close()
         return _Worker(process, here)
@@ -307,7 +309,7 @@ class _Dispatcher:
         if self.together and noted is not None:
             self._by_key(noted)
 
-    def _by_key(self, noted: Callable[[DictConfig, list[str]], Any]) -> None:
+    def _by_key(self, noted: Callable[[DictConfig, list[str], Any], Any]) -> None:
         """Put the jobs of each batch key side by side (keys in the order they first come), from
         the keys the config loader noted when the sweeper checked the jobs: a sweep whose jobs of
         one key are far apart (seeds of simulated instances: ``seed`` varies fastest) then sends

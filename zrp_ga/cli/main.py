@@ -32,10 +32,11 @@ from zrp_ga import config
 from zrp_ga.core.errors import one_line
 
 config.launcher_stored()  # conf/config.yaml's default launcher, also where main() is called without cli()
+# hydra.main's keyword of 1.4 alone (the hydra-core installed may be 1.3, whose hydra.main has no such keyword)
+_HYDRA_14_OPTIONS: dict[str, Any] = {"execution_whitelist": config.TRUSTED_TARGETS} if config.hydra_14() else {}
 
 
-@hydra.main(config_path="pkg://zrp_ga.conf", config_name="config", **config.hydra_options(),
-            **({"execution_whitelist": config.TRUSTED_TARGETS} if config.hydra_14() else {}))  # fmt: skip
+@hydra.main(config_path="pkg://zrp_ga.conf", config_name="config", **config.hydra_options(), **_HYDRA_14_OPTIONS)
 def main(cfg: DictConfig) -> float:
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
@@ -56,6 +57,7 @@ def main(cfg: DictConfig) -> float:
     else:
         p = take_prepared(out) or build.prepare(config.typed(cfg), out, overrides, choices)  # built once, by Prepare
         objective = execute.objective(execute.run_prepared(p, bool(cfg.progress)))  # the command line's (resume keeps it)
+        assert p.out is not None  # the command line's run has its directory: Hydra's, or the resumed run's
         summary.console(p.out)
     return objective
 
@@ -124,7 +126,8 @@ class _JobLineHeld:
     PREFIX = "Error executing job with overrides: "
 
     def __init__(self, stream: Any) -> None:
-        self.stream, self.held = stream, []
+        self.stream = stream
+        self.held: list[str] = []
 
     def write(self, text: str) -> int:
         if text.startswith(self.PREFIX):

@@ -98,13 +98,9 @@ def load_arms(calibration: Any, nominal: ZRPRobot | str | Path | None = None) ->
     """The arms of ``calibration`` (module docstring); ``nominal`` (a robot, a preset name or a
     robot file) replaces the nominal arm the calibration records, and must be that arm."""
     given = None if nominal is None else _robot(nominal, "nominal")
-    arms = _arms(calibration)
-    recorded = arms.nominal
+    arms, recorded = _arms(calibration, given)
     if given is not None and recorded is not None:
-        check_nominal(given, arms)
-    arms = dataclasses.replace(arms, nominal=given or arms.nominal)
-    if arms.nominal is None:
-        raise ValueError(f"{arms.source}: no nominal robot with it; give the nominal arm (a preset name or a robot file)")
+        check_nominal(given, dataclasses.replace(arms, nominal=recorded))
     cal, nom = arms.calibrated, arms.nominal
     if (nom.n, nom.joint_types) != (cal.n, cal.joint_types):
         raise ValueError(f"{arms.source}: the calibrated arm has joints {cal.joint_types}, the nominal {nom.name} "
@@ -114,25 +110,38 @@ def load_arms(calibration: Any, nominal: ZRPRobot | str | Path | None = None) ->
     return arms
 
 
-def _arms(calibration: Any) -> Arms:
-    """The arms of a calibrated robot, a calibration, a run directory or a robot file (the
-    nominal arm None where none is recorded)."""
+def _arms(calibration: Any, given: ZRPRobot | None) -> tuple[Arms, ZRPRobot | None]:
+    """The arms of a calibrated robot, a calibration, a run directory or a robot file, their
+    nominal arm the ``given`` one, else the one recorded (:func:`_nominal`); and the nominal arm
+    recorded (None where none is)."""
     if isinstance(calibration, ZRPRobot):
-        return Arms(calibration, None, source="the calibrated robot")
+        source = "the calibrated robot"
+        return Arms(calibration, _nominal(given, None, source), source=source), None
     if isinstance(calibration, Calibration):
-        return _from_calibration(calibration)
+        return _from_calibration(calibration, given)
     if isinstance(calibration, (str, os.PathLike)):
-        return _from_path(as_path(calibration, "calibration"))
+        return _from_path(as_path(calibration, "calibration"), given)
     raise TypeError(f"calibration: expected {CALIBRATION_TYPES}; got {_kind(calibration)}")
+
+
+def _nominal(given: ZRPRobot | None, recorded: ZRPRobot | None, source: str) -> ZRPRobot:
+    """The nominal arm: the one given, else the one the calibration records (ValueError: none)."""
+    nominal = given if given is not None else recorded
+    if nominal is None:
+        raise ValueError(f"{source}: no nominal robot with it; give the nominal arm (a preset name or a robot file)")
+    return nominal
 
 
 def _kind(value: Any) -> str:
     return "None" if value is None else f"a {type(value).__module__}.{type(value).__qualname__}".replace("builtins.", "")
 
 
-def _from_calibration(calibration: Calibration, source: str = "the calibration") -> Arms:
+def _from_calibration(
+    calibration: Calibration, given: ZRPRobot | None, source: str = "the calibration"
+) -> tuple[Arms, ZRPRobot | None]:
     """The arms of a :class:`~zrp_ga.run.calibration.Calibration` (what :func:`zrp_ga.calibrate`
-    returns, or :func:`zrp_ga.load` reads), with its covariance and the region its poses cover."""
+    returns, or :func:`zrp_ga.load` reads), with its covariance and the region its poses cover;
+    and its recorded nominal arm (:func:`_arms`)."""
     where = f"{source}: calibrated_robot"
     base = None if calibration.base is None else frames.check_transform(calibration.base, f"{where}.base")
     tool = next(iter(calibration.tools.values()), None)
@@ -145,9 +154,10 @@ def _from_calibration(calibration: Calibration, source: str = "the calibration")
                      "residual.json): the inverse kinematics solves on the parametric model plus its correction, applied "
                      "as a translation of the hand, and sigma_mm adds its spread; far from the calibration poses the "
                      "correction fades to zero")  # fmt: skip
-    return Arms(calibration.arm, calibration.nominal, base, source, tuple(notes), tool=tool,
+    arms = Arms(calibration.arm, _nominal(given, calibration.nominal, source), base, source, tuple(notes), tool=tool,
                 orientations=calibration.orientations, measured=base is not None, noise_mm=_noise(calibration.summary),
                 uncertainty=calibration.uncertainty, coverage=calibration.coverage, residual=calibration.residual)  # fmt: skip
+    return arms, calibration.nominal
 
 
 def _noise(summary: dict) -> float | None:
@@ -158,20 +168,23 @@ def _noise(summary: dict) -> float | None:
         return None
 
 
-def _from_path(path: Path) -> Arms:
+def _from_path(path: Path, given: ZRPRobot | None) -> tuple[Arms, ZRPRobot | None]:
     """The arms of a run directory (:func:`zrp_ga.run.calibration.load`), or of a calibrated
-    robot file (with its run's when it lies in a run directory)."""
+    robot file (with its run's when it lies in a run directory); and the recorded nominal arm
+    (:func:`_arms`)."""
     from zrp_ga.io.robot_files import read_robot
 
     if path.is_dir():
         if (path / RUN_MODEL).is_file() and not (path / directory.SUMMARY).is_file():  # the arm alone
-            return Arms(read_robot(path / RUN_MODEL), None, source=str(path / RUN_MODEL))
-        return _from_calibration(load(path), str(path / RUN_MODEL))
+            source = str(path / RUN_MODEL)
+            return Arms(read_robot(path / RUN_MODEL), _nominal(given, None, source), source=source), None
+        return _from_calibration(load(path), given, str(path / RUN_MODEL))
     regular_file(path, "a calibrated robot file or a zrp-ga run directory")
     cal = read_robot(path)
     if not (path.parent / directory.SUMMARY).is_file():
-        return Arms(cal, None, source=str(path))
-    return dataclasses.replace(_from_calibration(load(path.parent), str(path)), calibrated=cal)  # a run's URDF: its arm in the base frame too
+        return Arms(cal, _nominal(given, None, str(path)), source=str(path)), None
+    arms, recorded = _from_calibration(load(path.parent), given, str(path))
+    return dataclasses.replace(arms, calibrated=cal), recorded  # a run's URDF: its arm in the base frame too
 
 
 def _robot(robot: Any, what: str) -> ZRPRobot:
@@ -183,7 +196,7 @@ def _robot(robot: Any, what: str) -> ZRPRobot:
         return robot
     if not isinstance(robot, (str, os.PathLike)):
         raise TypeError(f"{what}: expected a ZRPRobot, a preset name or a robot file path; got {_kind(robot)}")
-    return presets.get(str(robot)) if str(robot) in presets.names() else read_robot(robot)
+    return presets.get(str(robot)) if str(robot) in presets.names() else read_robot(Path(robot))
 
 
 # --- is the nominal arm the calibrated arm's? ---------------------------------------------------

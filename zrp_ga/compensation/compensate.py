@@ -233,12 +233,13 @@ def _placement(arms: Arms, frame: str, work_object: Any, wo_frame: str | None, r
     return Placement(frame, lambda unit: outer @ W(unit), f"the work object ({said}, in the {wo_frame} frame)", points)
 
 
-def _work_object(value: Any, arms: Arms, outer: Array, reading: tuple):
+def _work_object(
+    value: Any, arms: Arms, outer: Array, reading: tuple
+) -> tuple[Callable[[str], Array], str, Callable[[str], Array] | None]:
     """The work object (4, 4) in its outer frame and its three points (3, 3) m (or None), as
     functions of the program's length unit, and what it was."""
     length_unit, angle_unit, convention, sep, decimal = reading
-    if isinstance(value, str) and _numbers(value) is not None:
-        v = _numbers(value)
+    if isinstance(value, str) and (v := _numbers(value)) is not None:
         if len(v) != 9:
             raise ValueError(f"work_object (--work-object): {value!r}: expected nine numbers (points O, X, Y) or a file")
         points = lambda unit: np.reshape(v, (3, 3)) * LENGTH[unit]
@@ -248,8 +249,8 @@ def _work_object(value: Any, arms: Arms, outer: Array, reading: tuple):
         given = np.asarray(value, dtype=float)
         return (lambda unit: W), "given in memory", ((lambda unit: given) if given.shape == (3, 3) else None)
     locate = lambda p, unit: np.linalg.norm(frames.apply(outer, p)[0] - arms.nominal.b0[0], axis=1)
-    W, said, points = read_work_object(value, arms.nominal, length_unit, angle_unit, convention, sep, decimal, locate)
-    return (lambda unit: W), said, (None if points is None else lambda unit: points)
+    W, said, found = read_work_object(value, arms.nominal, length_unit, angle_unit, convention, sep, decimal, locate)
+    return (lambda unit: W), said, (None if found is None else lambda unit: found)
 
 
 def _numbers(text: str) -> list[float] | None:
@@ -314,7 +315,7 @@ def _notes(arms: Arms, tool: Any, tool_T: Array | None, probe_in_flange: Any, or
     if place.points is not None and pr.p is not None:
         o, x, y = place.points(pr.length_unit)
         axis = (x - o) / np.linalg.norm(x - o)
-        apart = min(np.linalg.norm(x - o), np.linalg.norm((y - o) - np.dot(y - o, axis) * axis))
+        apart = float(min(np.linalg.norm(x - o), np.linalg.norm((y - o) - np.dot(y - o, axis) * axis)))
         notes.append(setups.work_object_note(apart, float(np.linalg.norm(pr.p, axis=1).max()), arms.noise_mm))
     if place.frame != "base":
         notes.append(f"the targets were given in {place.source} and mapped to the base frame; the corrected Cartesian "
@@ -325,8 +326,10 @@ def _notes(arms: Arms, tool: Any, tool_T: Array | None, probe_in_flange: Any, or
 def _targets(pr: Program, arms: Arms, T: Array, orient: bool) -> tuple[Array, Array | None]:
     """The targets (M, 3) m and (M, 3, 3) or None, in the robot's base frame."""
     if pr.kind == "joints":
+        assert pr.q is not None  # a joint program is its joint values
         R, p = kinematics.forward(arms.nominal, pr.q)
         return p, R if orient else None
+    assert pr.p is not None  # a Cartesian program has its positions
     return frames.apply(T, pr.p, pr.R if orient else None)
 
 
@@ -357,6 +360,7 @@ def _solve_all(pr: Program, arms: Arms, p: Array, R: Array | None, first: Array,
     for k in range(M):
         R_k = None if R is None else R[k]
         if pr.kind == "joints":
+            assert pr.q is not None  # a joint program is its joint values
             q_nom[k] = pr.q[k]
         else:
             s = nominal_solution(nom, p[k], R_k, pr.q[k] if pr.q is not None else seed, first, k, tol)

@@ -27,6 +27,7 @@ coordinates in the frame it is given in (``p_outer = T[:3, :3] p + T[:3, 3]``).
 from __future__ import annotations
 
 import dataclasses
+from typing import overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -51,6 +52,12 @@ def inverse(T: Array) -> Array:
     return transform(T[:3, :3].T, -T[:3, :3].T @ T[:3, 3])
 
 
+@overload
+def apply(T: Array, p: Array, R: None = None) -> tuple[Array, None]: ...
+@overload
+def apply(T: Array, p: Array, R: Array) -> tuple[Array, Array]: ...
+@overload
+def apply(T: Array, p: Array, R: Array | None) -> tuple[Array, Array | None]: ...
 def apply(T: Array, p: Array, R: Array | None = None) -> tuple[Array, Array | None]:
     """Positions (M, 3) and rotations (M, 3, 3) or None given in frame ``T``, in ``T``'s outer frame."""
     return p @ T[:3, :3].T + T[:3, 3], None if R is None else T[:3, :3] @ R
@@ -85,7 +92,7 @@ def work_object(origin: ArrayLike, on_x: ArrayLike, in_xy: ArrayLike) -> Array:
         raise ValueError("work object: the points O and X coincide")
     x = ox / np.linalg.norm(ox)
     z = np.cross(x, oy)
-    if np.linalg.norm(z) < 1e-6 * max(np.linalg.norm(oy), 1e-6) or np.linalg.norm(oy) < 1e-6:
+    if np.linalg.norm(z) < 1e-6 * max(float(np.linalg.norm(oy)), 1e-6) or np.linalg.norm(oy) < 1e-6:
         raise ValueError("work object: the points O, X and Y lie on one line; Y must be off the x axis")
     z /= np.linalg.norm(z)
     return transform(np.column_stack([x, np.cross(z, x), z]), o)

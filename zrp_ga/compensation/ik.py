@@ -103,6 +103,7 @@ def solve(robot: ZRPRobot, p: ArrayLike, R: ArrayLike | None, q0: ArrayLike,
     few steps; anything else goes on with ``scipy.optimize.least_squares`` (trust-region
     reflective, the limits as bounds), which also says which joints a limit holds."""
     p = np.asarray(p, dtype=float)
+    R = None if R is None else np.asarray(R, dtype=float)
     if correction is not None:
         return _solve_corrected(robot, p, R, q0, correction, tolerance_m, tolerance_rad)
     lower, upper = robot.joint_limits.T

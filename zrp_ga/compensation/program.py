@@ -126,7 +126,7 @@ def read_program(
     p = None if p_file is None else p_file * LENGTH[length]
     R, angles, unit = _orientation(cells, cols, number, angle_unit, joint)
     found = cols.joints is not None or angle_unit != AUTO
-    if not found and angles is not None and orientation.is_angle(cols.convention):
+    if not found and angles is not None and orientation.is_angle(_convention(cols)):
         joint, found = unit, True  # no joint columns: the program's angles are in its orientations' unit
     names = cols.joint_names or tuple(f"q{i + 1}" for i in range(robot.n))
     kind = "cartesian" if cols.position is not None else "joints"
@@ -384,7 +384,7 @@ def _orientation(cells: Cells, cols: Columns, number, setting: str, joint_unit: 
     if cols.orientation is None:
         return None, None, joint_unit
     values = np.column_stack([number(c) for c in cols.orientation])
-    conv = cols.convention
+    conv = _convention(cols)
     if not orientation.is_angle(conv):
         bad = np.flatnonzero(orientation.quaternion_norms(values) > orientation.UNIT_QUATERNION_TOL)
         if bad.size:
@@ -397,6 +397,12 @@ def _orientation(cells: Cells, cols: Columns, number, setting: str, joint_unit: 
     return orientation.to_matrices(angles, conv), angles, unit
 
 
+def _convention(cols: Columns) -> str:
+    """The orientation columns' convention (there are orientation columns)."""
+    assert cols.convention is not None  # orientation columns are found only with their convention (_orientation_columns)
+    return cols.convention
+
+
 def _angle_unit(cells: Cells, cols: Columns, values: Array, setting: str, joint_unit: str) -> str:
     named = cols.units["orientation"]
     if named is not None:
@@ -406,6 +412,7 @@ def _angle_unit(cells: Cells, cols: Columns, values: Array, setting: str, joint_
     beyond = np.abs(values) > 1.05 * 2 * np.pi
     if setting == "rad" and beyond.any():
         k, j = (int(i) for i in np.argwhere(beyond)[0])
+        assert cols.orientation is not None  # the values are the orientation columns' (_orientation)
         raise ValueError(f"{cells.source}, {cells.where[k]}, column {cols.orientation[j]!r}: {values[k, j]:g} rad is beyond any "
                          f"turn; in degrees? {SETTING['angle']} deg")  # fmt: skip
     if setting != AUTO:
@@ -426,19 +433,19 @@ def _array_program(program: Any, robot: ZRPRobot, kind: str, convention: str | N
         raise ValueError(f"program: NaN or inf at index {tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])}")
     where = tuple(f"row {k}" for k in range(len(a)))
     names = tuple(f"q{i + 1}" for i in range(robot.n))
-    si = dict(length_unit="m", angle_unit="rad", convention=convention)
     cells = Cells(None, where, "program")
     if kind == "joints" and a.ndim == 2 and a.shape[1] == robot.n:
         check_joints(a, robot, names, cells, {"length": "m", "angle": "rad"})
-        return Program("joints", a, None, None, where, "program", names, **si)
+        return Program("joints", a, None, None, where, "program", names, length_unit="m", angle_unit="rad", convention=convention)
     if kind == "cartesian" and a.ndim == 2 and a.shape[1] == 3:
-        return Program("cartesian", None, a, None, where, "program", names, **si)
+        return Program("cartesian", None, a, None, where, "program", names, length_unit="m", angle_unit="rad",
+                       convention=convention)  # fmt: skip
     if kind == "cartesian" and a.shape[1:] == (4, 4):
         frames.check_rotations(a[:, :3, :3], "program", where)
         if np.abs(a[:, 3] - [0, 0, 0, 1]).max() > frames.ROTATION_TOL:
             raise ValueError("program: the last row of every pose (4, 4) is 0 0 0 1")
-        return Program("cartesian", None, a[:, :3, 3], a[:, :3, :3], where, "program", names,
-                       **{**si, "convention": convention or ROTVEC})  # fmt: skip
+        return Program("cartesian", None, a[:, :3, 3], a[:, :3, :3], where, "program", names, length_unit="m",
+                       angle_unit="rad", convention=convention or ROTVEC)  # fmt: skip
     raise ValueError(f"program: an array of shape {a.shape} with kind={kind!r}; expected kind='joints' with (M, {robot.n}) "
                      "or kind='cartesian' with (M, 3) positions or (M, 4, 4) poses")  # fmt: skip
 
@@ -453,6 +460,7 @@ def read_work_object(source: Any, robot: ZRPRobot, length_unit: str, angle_unit:
     (:func:`read_program`), ``locate`` as there, for the points' frame."""
     cells = table_cells(source, sep, "work object")
     cols = columns_of(cells, robot, "cartesian", convention)
+    assert cols.position is not None  # columns_of refuses a Cartesian table without x, y, z
     p_file = np.column_stack([column(cells, c, decimal) for c in cols.position])
     length = length_unit_of(cells.source, robot, _stated(cols.units["position"], None, length_unit, "length", cells.source),
                             p_file, None, locate)  # fmt: skip

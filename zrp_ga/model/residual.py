@@ -36,10 +36,14 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:  # scikit-learn has no type information: these names are Any to mypy, said for the reader
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import Kernel
 
 Array = NDArray[np.float64]
 FILE = "residual.json"
@@ -51,13 +55,13 @@ SIGNAL_BOUNDS = (1e-4, 1e2)  # s^2, in units of the residuals' mean square
 NOISE_BOUNDS = (1e-6, 1e1)  # w^2, the same units
 
 
-def _kernel(n: int):
+def _kernel(n: int) -> Kernel:
     from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
 
     return ConstantKernel(1.0, SIGNAL_BOUNDS) * Matern(np.ones(n), LENGTH_BOUNDS, nu=NU) + WhiteKernel(0.1, NOISE_BOUNDS)
 
 
-def _regressor(kernel, optimise: bool):
+def _regressor(kernel: Kernel, optimise: bool) -> GaussianProcessRegressor:
     from sklearn.gaussian_process import GaussianProcessRegressor
 
     return GaussianProcessRegressor(kernel, optimizer="fmin_l_bfgs_b" if optimise else None, normalize_y=False,
@@ -76,7 +80,7 @@ class Residual:
     scale: Array
     y_scale: float
     theta: Array
-    _gp: Any = dataclasses.field(default=None, repr=False)
+    _gp: Any = dataclasses.field(default=None, repr=False)  # the conditioned GaussianProcessRegressor
 
     @classmethod
     def fit(cls, q: ArrayLike, r: ArrayLike) -> Residual:

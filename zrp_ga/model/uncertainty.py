@@ -68,11 +68,12 @@ def pose_jacobians(layout: Layout, nominal: ZRPRobot, x: ArrayLike, q: ArrayLike
     length = np.linalg.norm(raw, axis=1)
     unit = raw / length[:, None]
     core = 6 * n + 3 * layout.base + 3 * layout.hand
-    q = np.atleast_2d(np.asarray(q, dtype=float))
+    poses: Array = np.atleast_2d(np.asarray(q, dtype=float))
     if layout.terms:  # the full model: the joints turned by the terms (features on the nominal arm, as the fit has them)
-        phi = terms.features(layout.terms, nominal, q)
-        q = q + terms.offsets(layout.terms, n, phi, m.theta[:, 0])
-    Jc = error_model.jacobian_arrays(unit, m.B[:, :, 0], nominal.prismatic, q, layout.base, layout.hand)
+        assert m.theta is not None  # unpack sets the term genes whenever the layout has terms
+        phi = terms.features(layout.terms, nominal, poses)
+        poses = poses + terms.offsets(layout.terms, n, phi, m.theta[:, 0])
+    Jc = error_model.jacobian_arrays(unit, m.B[:, :, 0], nominal.prismatic, poses, layout.base, layout.hand)
     if layout.hand:
         Jc[:, :3, blocks["hand"]] = Jc[:, :3, blocks["hand"]] @ so3.left_jacobian(x[blocks["hand"]])
     N = (np.eye(3) - unit[:, :, None] * unit[:, None, :]) / length[:, None, None]
@@ -84,7 +85,7 @@ def pose_jacobians(layout: Layout, nominal: ZRPRobot, x: ArrayLike, q: ArrayLike
         import types
 
         arm = types.SimpleNamespace(u0=unit, b0=m.B[:, :, 0], R_h0=m.H[:, :, 0], prismatic=nominal.prismatic, n=n)
-        J[..., blocks["terms"]] = terms.joint_jacobian(arm, q)[:, :, layout.terms.joints] * phi[:, None, :]
+        J[..., blocks["terms"]] = terms.joint_jacobian(arm, poses)[:, :, layout.terms.joints] * phi[:, None, :]
     if tool:
         end = slice(6 * n - 3, 6 * n)
         J[..., blocks[f"tool{tool + 1}"]] = J[..., end]
