@@ -2,7 +2,7 @@
 its results stay the same.
 
     python experiments/bench_sweep.py [--repeats 3] [--big-seeds 210] [--studies [NAME ...]]
-                                      [--before REV] [--hydra-launchers] [--out DIR]
+                                      [--before REV] [--hydra-launchers] [--sweeper zrp_ga] [--out DIR]
 
 One command, on this machine's cores, writing results/bench_sweep.md:
 
@@ -33,6 +33,8 @@ One command, on this machine's cores, writing results/bench_sweep.md:
   their reports with the committed options, without figures) and their tables' medians and
   quartiles compared with the committed ones (see :data:`STUDIES`; without names the cheap ones,
   :data:`CHEAP`).
+- ``--sweeper zrp_ga``: the current code's sweeps (the grid, its lockstep=false twin, the big study)
+  with zrp_ga's sweeper (``hydra/sweeper=zrp_ga``) instead of Hydra's basic one.
 - ``--before REV``: the default run and the grid with the code of git revision ``REV`` too,
   from a copy of that tree on ``PYTHONPATH``. ``--hydra-launchers``: the grid with Hydra's
   joblib launcher too (and its basic one with ``--before``); they take minutes.
@@ -69,6 +71,7 @@ ROOT = Path(__file__).resolve().parents[1]
 GRID = ["experiment=operator_grid"]
 LAUNCHERS = {"basic": [], "joblib": ["hydra/launcher=joblib"], "zrp_ga": ["hydra/launcher=local"]}
 LOCAL = LAUNCHERS["zrp_ga"]
+SWEEPERS = {"basic": [], "zrp_ga": ["hydra/sweeper=zrp_ga"]}
 RUN_MODULES = ("zrp_ga.cli.main zrp_ga.io.presets zrp_ga.problems.simulated zrp_ga.algorithms.ga zrp_ga.operators "
                "zrp_ga.run.callbacks zrp_ga.run.summary zrp_ga.io.records zrp_ga.run.checkpoint threadpoolctl")  # fmt: skip
 OFFSPRING = 50  # lambda of the grid's runs
@@ -309,6 +312,8 @@ def main() -> None:
                              f"no name: {', '.join(CHEAP)})")  # fmt: skip
     parser.add_argument("--before", default=None, help="git revision to compare with (e.g. 3befbdd)")
     parser.add_argument("--hydra-launchers", action="store_true", help="the grid with Hydra's launchers too (minutes)")
+    parser.add_argument("--sweeper", choices=list(SWEEPERS), default="basic",
+                        help="the sweeper of the current code's sweeps (zrp_ga: hydra/sweeper=zrp_ga)")  # fmt: skip
     parser.add_argument("--kernel-batches", default=f"{OFFSPRING},{48 * OFFSPRING}",
                         help="genomes per kernel call of the kernel-only timing (one run's offspring; a lockstep batch)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=None)
@@ -338,7 +343,8 @@ def main() -> None:
     poses = problem.data.M
     raw: dict = {"runs": {c: [] for c in codes}, "grids": {}, "jobs": [], "kernel": [], "load_before": load(), "poses": poses,
                  "args": {"repeats": args.repeats, "big_seeds": args.big_seeds, "before": args.before, "studies": studies,
-                          "hydra_launchers": args.hydra_launchers, "batches": batches}}  # fmt: skip
+                          "hydra_launchers": args.hydra_launchers, "batches": batches, "sweeper": args.sweeper}}  # fmt: skip
+    mine = SWEEPERS[args.sweeper]  # the current code's sweeps only: a --before tree may not have the sweeper
 
     def keep() -> None:
         (work / "raw.json").write_text(json.dumps(raw, indent=1, default=str))  # what a crash would not take away
@@ -353,7 +359,7 @@ def main() -> None:
             for name in names:
                 key = f"{c} / {name}"
                 try:
-                    ran = sweep(GRID + LAUNCHERS[name], code, work, f"{c.split()[0]}-{name}-{k}", poses)
+                    ran = sweep(GRID + LAUNCHERS[name] + (mine if code is None else []), code, work, f"{c.split()[0]}-{name}-{k}", poses)  # fmt: skip
                     raw["grids"].setdefault(key, []).append(ran)
                 except RuntimeError as exc:
                     if code is None:
@@ -364,12 +370,12 @@ def main() -> None:
         raw["kernel"].append(kernel_rates(problem, batches))
         keep()
         print(f"round {k + 1} of {args.repeats} done, load {load()}", flush=True)
-    alone = sweep(GRID + LOCAL + ["hydra.launcher.lockstep=false"], None, work, "alone", poses)
+    alone = sweep(GRID + LOCAL + mine + ["hydra.launcher.lockstep=false"], None, work, "alone", poses)
     raw["alone"] = {**alone, "compared": identical(Path(raw["grids"]["after / zrp_ga"][0]["dir"]), Path(alone["dir"]))}
     keep()
     print(f"identical curves: {raw['alone']['compared'][0]} of {raw['alone']['compared'][1]} runs", flush=True)
     if args.big_seeds:
-        raw["big"] = sweep(GRID + LOCAL + [f"seed=range({args.big_seeds})"], None, work, "big", poses)
+        raw["big"] = sweep(GRID + LOCAL + mine + [f"seed=range({args.big_seeds})"], None, work, "big", poses)
         keep()
         print(f"big study done, load {load()}", flush=True)
     raw["studies"] = {}
@@ -397,6 +403,8 @@ def report(raw: dict) -> str:
     cmd = "python experiments/bench_sweep.py" + (f" --before {args.before}" if args.before else "")
     cmd += f" --repeats {args.repeats} --big-seeds {args.big_seeds}"
     cmd += (" --studies " + " ".join(studies) if studies else "") + (" --hydra-launchers" if args.hydra_launchers else "")
+    sweeper = getattr(args, "sweeper", "basic")  # raw.json of earlier runs: no sweeper kept
+    cmd += f" --sweeper {sweeper}" if sweeper != "basic" else ""
     lines = [
         "# Sweeps at the speed of the kernel: what runs and sweeps cost beyond their pose evaluations", "",
         f"Command: `{cmd}`, on {n} cores (Python {sys.version.split()[0]}). Machine load average "
@@ -468,13 +476,15 @@ def report(raw: dict) -> str:
     big = raw.get("big")
     if big:
         lines += ["", f"## A {big['runs']:,}-run study (the grid with {args.big_seeds} seeds, zrp_ga's launcher)", "",
-                  f"`zrp-ga -m experiment=operator_grid hydra/launcher=local seed=range({args.big_seeds})`: "
+                  f"`zrp-ga -m experiment=operator_grid hydra/launcher=local{' hydra/sweeper=zrp_ga' * (sweeper == 'zrp_ga')} "
+                  f"seed=range({args.big_seeds})`: "
                   f"**{big['wall_s']:.1f} s wall** ({big['wall_s'] / 60:.1f} min; {big['wall_s'] / big['runs'] * 1000:.1f} s per "
                   f"1,000 runs), {big['cpu_s']:.1f} s CPU ({big['cpu_s'] / big['runs'] * 1000:.0f} ms per run); "
                   f"{big['done']:,} of {big['runs']:,} manifest jobs done; {big['pose_evals'] / 1e6:,.0f} M pose evaluations. "
                   + ("" if big.get("launch_s") is None else
-                     f"Of the wall time, {big['launch_s']:.0f} s passed before the jobs were launched (the log's `Launching` "
-                     "line: Hydra's sweeper composes every job to check it, the workers wait)."),
+                     f"Of the wall time, {big['launch_s']:.0f} s passed before the jobs were launched (the log's `Launching` line: "
+                     + ("zrp_ga's sweeper composes the jobs that bring a new choice or value" if sweeper == "zrp_ga"
+                        else "Hydra's sweeper composes every job to check it") + ", the workers wait)."),
                   "", f"10,000 such runs at this machine's speed, one worker being one core: "
                   f"{big['cpu_s'] / big['runs'] * 10_000 / 60:.1f} worker-minutes on zrp_ga's launcher; "
                   f"{statistics.median(j['cpu_s'] for j in jobs) * 10_000 / 60:.0f} worker-minutes with a process per "
