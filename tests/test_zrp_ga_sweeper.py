@@ -91,8 +91,12 @@ SMALL = ["problem=multipose", "problem.n_poses=10", "problem.n_validation=10", "
 
 
 def _sweep(where: Path, *args: str) -> subprocess.CompletedProcess:
+    """The sweep on the command line, run from its own folder: from the checkout's root,
+    ``python -m`` would import the checkout's zrp_ga (without its configs, which ship as
+    zrp_ga.conf) instead of the installed one."""
+    where.mkdir(parents=True, exist_ok=True)
     return subprocess.run([sys.executable, "-m", "zrp_ga.cli", "-m", "seed=0,1", "crossover=sbx,blend", *SMALL, *args,
-                           f"hydra.sweep.dir={where}"], capture_output=True, text=True)  # fmt: skip
+                           f"hydra.sweep.dir={where}"], capture_output=True, text=True, cwd=where.parent)  # fmt: skip
 
 
 def test_the_sweepers_jobs_write_what_the_basic_sweepers_write(tmp_path):
