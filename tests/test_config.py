@@ -154,7 +154,7 @@ def test_a_problem_kind_and_an_optimiser_without_a_schema_run(tmp_path, monkeypa
 
 def test_the_schemas_are_stored_in_hydras_config_store_once():
     """zrp_ga's schemas stored once however often configs are composed (hydra-core 1.4 warns about
-    a name stored twice, 1.5 refuses), the launcher's settings each time their module runs (1.3's
+    a name stored twice, 1.5 refuses), the launcher's and the sweeper's settings each time their module runs (1.3's
     plugin scan runs it again: with its class of then, which a composed config is pickled with)."""
     code = textwrap.dedent("""
         import collections, pickle
@@ -169,7 +169,7 @@ def test_the_schemas_are_stored_in_hydras_config_store_once():
         Plugins.instance()
         cfg = config.compose(["hydra/launcher=local"], return_hydra_config=True); config.load([]); config.load(["algorithm=cmaes"])
         pickle.dumps(cfg)  # the launcher's settings are the class its module holds now
-        twice = [key for key, count in stored.items() if count > 1 and key[0] != "hydra/launcher"]
+        twice = [key for key, count in stored.items() if count > 1 and key[0] not in ("hydra/launcher", "hydra/sweeper")]
         print(twice or "once", (None, "config_schema") in stored, ("hydra/launcher", "zrp_ga") in stored)
     """)  # fmt: skip
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
