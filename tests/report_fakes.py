@@ -66,3 +66,20 @@ if __name__ == "__main__":  # python tests/report_fakes.py DIR RUNS: made-up run
     import sys
 
     many(Path(sys.argv[1]), int(sys.argv[2]))
+
+
+def crossover_study(root: Path, instances: int = 4, seeds: int = 4) -> None:
+    """Three crossovers (blend, sbx, two_point) on ``instances`` instances, ``seeds`` shared seeds
+    each, blend always best: every figure of the report drawn (with four instances, Friedman's
+    test across them, p = exp(-4), draws the critical-difference diagram)."""
+    import copy
+
+    for i in range(instances):
+        inst, floor = f"inst-{'ABCD'[i]}", (0.01, 0.02, 0.03, 0.04)[i]
+        for cx, scale in (("blend", 1.0), ("sbx", 1.4), ("two_point", 2.0)):
+            cfg = copy.deepcopy(ALGORITHMS["ga"])
+            cfg["crossover"]["op"]["_target_"] = f"zrp_ga.operators.crossover.{cx}"
+            for seed in range(seeds):
+                rows = [(10 * (g + 1), floor * (1 + (10 + seed) * scale * 0.5**g)) for g in range(8)]
+                fake_run(root / f"{inst}-{cx}-{seed}", inst, "ga", rows, floor=floor, seed=seed, config=cfg, nominal=1.0,
+                         choices={"algorithm": "ga", "crossover": cx}, validation=1 + 0.1 * scale + 0.01 * seed)  # fmt: skip

@@ -2,13 +2,12 @@
 error and no network request, and every figure renders. CI installs Chromium (.ci/run); a
 machine without it skips these tests, except under CI, where a missing browser fails them."""
 
-import copy
 import os
 import re
 
 import browser
 import pytest
-from report_fakes import ALGORITHMS, fake_run
+from report_fakes import crossover_study
 
 from zrp_ga import report
 
@@ -18,23 +17,10 @@ if CHROMIUM is None and os.environ.get("CI"):
 needs_chromium = pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on the PATH (Debian: apt-get install chromium)")
 
 
-def _study(root):
-    """Three crossovers on four instances, four shared seeds each: the first always best (so that
-    Friedman's test across the instances, p = exp(-4), draws the critical-difference diagram)."""
-    for inst, floor in (("inst-A", 0.01), ("inst-B", 0.02), ("inst-C", 0.03), ("inst-D", 0.04)):
-        for c, (cx, scale) in enumerate((("blend", 1.0), ("sbx", 1.4), ("two_point", 2.0))):
-            cfg = copy.deepcopy(ALGORITHMS["ga"])
-            cfg["crossover"]["op"]["_target_"] = f"zrp_ga.operators.crossover.{cx}"
-            for seed in range(4):
-                rows = [(10 * (g + 1), floor * (1 + (10 + seed) * scale * 0.5**g)) for g in range(8)]
-                fake_run(root / f"{inst}-{cx}-{seed}", inst, "ga", rows, floor=floor, seed=seed, config=cfg, nominal=1.0,
-                         choices={"algorithm": "ga", "crossover": cx}, validation=1 + 0.1 * scale + 0.01 * seed)  # fmt: skip
-
-
 @pytest.fixture(scope="module")
 def page(tmp_path_factory):
     root = tmp_path_factory.mktemp("page")
-    _study(root / "runs")
+    crossover_study(root / "runs")
     report.write_report([root / "runs"], root / "out", formats=("svg",))
     return root / "out" / "index.html"
 

@@ -2,26 +2,13 @@
 (``zrp_ga.report.drawing._each``): the report is the one drawn one figure after the other in this
 process, every file and the page alike (the page's time stamp aside)."""
 
-import copy
 import os
 import re
 
 import pytest
-from report_fakes import ALGORITHMS, fake_run
+from report_fakes import crossover_study
 
 from zrp_ga import report
-
-
-def _study(root):
-    """Three crossovers on three instances, three shared seeds: every figure of the report drawn."""
-    for inst, floor in (("inst-A", 0.01), ("inst-B", 0.02), ("inst-C", 0.03)):
-        for cx, scale in (("blend", 1.0), ("sbx", 1.4), ("two_point", 2.0)):
-            cfg = copy.deepcopy(ALGORITHMS["ga"])
-            cfg["crossover"]["op"]["_target_"] = f"zrp_ga.operators.crossover.{cx}"
-            for seed in range(3):
-                rows = [(10 * (g + 1), floor * (1 + (10 + seed) * scale * 0.5**g)) for g in range(8)]
-                fake_run(root / f"{inst}-{cx}-{seed}", inst, "ga", rows, floor=floor, seed=seed, config=cfg, nominal=1.0,
-                         choices={"algorithm": "ga", "crossover": cx}, validation=1 + 0.1 * scale + 0.01 * seed)  # fmt: skip
 
 
 def _files(out):
@@ -32,7 +19,7 @@ def _files(out):
 
 @pytest.mark.slow  # two reports with their figures: 10 - 25 s on a busy machine (every report test draws forked as well)
 def test_figures_drawn_by_other_processes_give_the_report_drawn_here(tmp_path, monkeypatch):
-    _study(tmp_path / "runs")
+    crossover_study(tmp_path / "runs", instances=3, seeds=3)
     forked = []
     import multiprocessing.pool
 
