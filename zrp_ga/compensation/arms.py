@@ -82,13 +82,13 @@ class Arms:
             out = np.asarray(self.residual.predict(rows), dtype=float) @ B  # instrument -> base: B^T c per row
         return out[0] if q.ndim == 1 else out
 
-    def residual_std(self, q: ArrayLike) -> Array:
-        """The residual model's predictive standard deviation per coordinate (M,) m at joint
-        values q (M, n) (its signal's, not the measurement noise's; zeros without one)."""
+    def residual_spread(self, q: ArrayLike) -> Array:
+        """The residual model's predictive spread as a radius (M,) m at joint values q (M, n)
+        (:meth:`zrp_ga.model.residual.Residual.spread`; zeros without one)."""
         rows = np.atleast_2d(np.asarray(q, dtype=float))
         if self.residual is None:
             return np.zeros(len(rows))
-        return np.asarray(self.residual.predict(rows, std=True)[1], dtype=float)
+        return np.asarray(self.residual.spread(rows), dtype=float)
 
     def noted(self, *notes: str) -> Arms:
         return dataclasses.replace(self, notes=(*self.notes, *notes))

@@ -131,7 +131,7 @@ def predicted(arms: Arms, q: Array, orientations: bool = True) -> dict[str, Any]
             _, p = kinematics.forward(arms.calibrated, q[ok])
             _, at = kinematics.forward(u.robot(0), q[ok])
             e = u.predict(q[ok], 0, offset_m=p @ B[:3, :3].T + B[:3, 3] - at)
-            gp = np.sqrt(3.0) * arms.residual_std(q[ok])  # the residual model's own uncertainty, as a radius
+            gp = arms.residual_spread(q[ok])  # the residual model's own uncertainty, as a radius
             sigma[ok] = np.hypot(e["position_total_m"], gp) * 1e3
             turn[ok] = np.degrees(np.hypot(e["orientation_rad"], e["orientation_unidentified_rad"]))
         out["sigma_mm"] = sigma

@@ -124,6 +124,12 @@ class Residual:
         s = np.atleast_2d(s.T).T[:, 0] if s.ndim > 1 else s
         return mean * self.y_scale, np.sqrt(np.maximum(s**2 - self.noise, 0.0)) * self.y_scale
 
+    def spread(self, q: ArrayLike) -> Array:
+        """The predictive spread (M,) m at poses ``q`` (M, n) as a radius: ``sqrt(3) s``, ``s`` the
+        standard deviation per coordinate (:meth:`predict`), which prediction, the run's pose
+        table and compensation add in quadrature to the parametric model's 1-sigma radius."""
+        return np.sqrt(3.0) * self.predict(q, std=True)[1]
+
     def correction(self, q: ArrayLike) -> Array:
         """The correction (M, 3) m at poses ``q`` (M, n): the posterior mean."""
         return self._gp.predict((np.atleast_2d(np.asarray(q, dtype=float)) - self.centre) / self.scale) * self.y_scale

@@ -150,7 +150,7 @@ class MeasuredTask(Task):
             predicted = None if unc is None else unc.position_m(m.q, m.tools)
             assert m.lines is not None  # Measurements numbers its rows
             if predicted is not None and self.residual is not None:  # the residual model's own spread, as a radius
-                predicted = np.hypot(predicted, np.sqrt(3.0) * self.residual.predict(m.q, std=True)[1])
+                predicted = np.hypot(predicted, self.residual.spread(m.q))
             rows += [{"set": k, "line": int(line), **({"tool": names[t]} if len(names) > 1 else {}),
                       "nominal_mm": b * 1e3, "calibrated_mm": a * 1e3,
                       "predicted_mm": float(predicted[j]) * 1e3 if predicted is not None else "",

@@ -224,7 +224,7 @@ class Calibration:
         p = u.predict(q, tool)
         where = self._coverage_of(q)
         gp = self.residual  # its predictive spread, as a radius, in quadrature (predict)
-        spread = 0.0 if gp is None else np.sqrt(3.0) * gp.predict(np.atleast_2d(np.asarray(q, dtype=float)), std=True)[1]
+        spread = 0.0 if gp is None else gp.spread(q)
         return {"position_mm": np.hypot(p["position_total_m"], spread) * 1e3, "position_identified_mm": p["position_m"] * 1e3,
                 "position_unidentified_mm": p["position_unidentified_m"] * 1e3,
                 "orientation_mrad": np.hypot(p["orientation_rad"], p["orientation_unidentified_rad"]) * 1e3,
@@ -299,7 +299,7 @@ class Calibration:
             k = names.index(name) if name in names and names.index(name) < u.layout.n_tools else 0
             _, at = kinematics.forward(u.robot(k), q)
             e = u.predict(q, k, offset_m=lever_at - at)
-            spread = 0.0 if gp is None else np.sqrt(3.0) * gp.predict(q, std=True)[1]  # the process's own, as a radius
+            spread = 0.0 if gp is None else gp.spread(q)  # the process's own, as a radius
             pos = np.hypot(e["position_total_m"], spread) * 1e3
             rot = np.hypot(e["orientation_rad"], e["orientation_unidentified_rad"]) * 1e3
         where = self._coverage_of(q)
