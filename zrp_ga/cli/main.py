@@ -153,7 +153,7 @@ def _help(args: list[str]) -> bool:
     False, and Hydra answers, for any other command line (another flag, ``--config-dir``: the
     search path is not the package's alone), a template wanting what only Hydra's own parser knows
     (``$FLAGS_HELP``, ``$OVERRIDE_ALIASES``) or a config that does not compose (Hydra's message).
-    tests/test_app.py compares the text with Hydra's own."""
+    tests/test_hydra_cli.py compares the text with Hydra's own."""
     import copy
     import functools
     import string
