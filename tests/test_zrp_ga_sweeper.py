@@ -1,6 +1,7 @@
-"""zrp_ga's sweeper (``hydra/sweeper=zrp_ga``, hydra_plugins/zrp_ga_sweeper): Hydra's basic
-sweeper's jobs in Hydra's order, each job's record as the basic sweeper's sweep writes it, a bad
-value or option refused before any job runs, and few compositions to check a big grid."""
+"""zrp_ga's sweeper (``hydra/sweeper=zrp_ga``, the default, hydra_plugins/zrp_ga_sweeper): Hydra's
+basic sweeper's jobs in Hydra's order, each job's record as the basic sweeper's sweep writes it, a
+bad value or option refused before any job runs, few compositions to check a big grid, and the
+launcher's lockstep batches as whole as with Hydra's sweeper."""
 
 from __future__ import annotations
 
@@ -100,7 +101,7 @@ def _sweep(where: Path, *args: str) -> subprocess.CompletedProcess:
 
 
 def test_the_sweepers_jobs_write_what_the_basic_sweepers_write(tmp_path):
-    ours, basic = _sweep(tmp_path / "ours", "hydra/sweeper=zrp_ga"), _sweep(tmp_path / "basic")
+    ours, basic = _sweep(tmp_path / "ours"), _sweep(tmp_path / "basic", "hydra/sweeper=basic")
     assert ours.returncode == 0 and basic.returncode == 0, ours.stderr[-2000:] + basic.stderr[-2000:]
     assert "Warning" not in ours.stderr, ours.stderr
     assert (tmp_path / "ours" / "multirun.yaml").is_file()
@@ -116,6 +117,41 @@ def test_the_sweepers_jobs_write_what_the_basic_sweepers_write(tmp_path):
 
 
 def test_a_bad_value_stops_the_sweep_before_any_job(tmp_path):
-    proc = _sweep(tmp_path / "bad", "hydra/sweeper=zrp_ga", "population.mu=30,x")
+    proc = _sweep(tmp_path / "bad", "population.mu=30,x")
     assert proc.returncode == 2 and proc.stderr.startswith("zrp-ga: error: ") and "population.mu" in proc.stderr
     assert not list((tmp_path / "bad").glob("*/.hydra"))
+
+
+@pytest.mark.parametrize("args, sweeper", [([], "ZrpGaSweeper"), (["hydra/sweeper=basic"], "BasicSweeper"),
+                                           (["hparams_search=ga_optuna"], "OptunaSweeper")])  # fmt: skip
+def test_the_default_sweeper_is_zrp_gas_and_a_search_or_the_command_line_chooses_another(args, sweeper):
+    pytest.importorskip("hydra_plugins.hydra_optuna_sweeper") if "hparams_search=ga_optuna" in args else None
+    config.launcher_stored()
+    with initialize_config_module("zrp_ga.conf", **config.hydra_options()):
+        cfg = compose("config", overrides=args, return_hydra_config=True)
+    assert cfg.hydra.sweeper._target_.rsplit(".", 1)[1] == sweeper
+
+
+def _dispatched(proc: subprocess.CompletedProcess) -> list[int]:
+    """The jobs in the order the launcher sent them to its workers (its ``#N : ...`` lines)."""
+    return [int(line.split("#", 1)[1].split(" ", 1)[0]) for line in (proc.stdout + proc.stderr).splitlines() if "\t#" in line]
+
+
+def test_the_launcher_sends_the_runs_of_one_instance_together_without_every_job_composed(tmp_path):
+    """seed varies fastest and draws the instance: the 16 operator sets of a seed (jobs 0, 3, 6,
+    ...) are one batch key. With zrp_ga's sweeper the launcher groups them from the overrides
+    (one composition per swept key) and sends each seed's 16 as one batch, as it does from the
+    keys noted while Hydra's sweeper composes every job. In order, composing 32 jobs ahead
+    (twice the batch of 16 on one worker), it would send the ~11 of each seed it had composed,
+    then the rest: the seeds would come back."""
+    where = tmp_path / "order"
+    where.mkdir()
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "-m", "crossover=sbx,blend", "mutation=gaussian,polynomial",
+                           "inversion=none,segment", "rotation=none,segment", "seed=0,1,2", *SMALL,
+                           "hydra.launcher.n_jobs=1", f"hydra.sweep.dir={where}"],
+                          capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    order = _dispatched(proc)
+    assert sorted(order) == list(range(48))
+    seeds = [job % 3 for job in order]
+    assert seeds == sorted(seeds, key=seeds.index), order  # each seed's 16 jobs side by side

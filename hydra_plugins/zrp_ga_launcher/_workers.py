@@ -304,26 +304,74 @@ class _Dispatcher:
         self.waiting = 0  # jobs composed, not sent yet
         self.size = batch_size(len(todo), len(pool.workers))
         self.limit = self.size * len(pool.workers) * 2  # jobs composed ahead at most
-        self.left: collections.Counter | None = None  # per batch key, its jobs not composed yet (if known)
-        noted = getattr(launcher.hydra_context.config_loader, "noted_for", None)
-        if self.together and noted is not None:
-            self._by_key(noted)
+        self.left: collections.Counter | None = None  # per batch key (or group), its jobs not composed yet (if known)
+        self.noted: Callable[..., Any] | None = None  # the loader's notes of every job's key
+        self.group: dict[int, Any] | None = None  # else per job, its group: the values of the overrides that change keys
+        self.early: dict[tuple[str, ...], DictConfig] = {}  # configs composed to find the groups, by their overrides
+        if self.together:
+            noted = getattr(launcher.hydra_context.config_loader, "noted_for", None)
+            if not (noted is not None and self._by_key(noted)):
+                self._by_overrides()
 
-    def _by_key(self, noted: Callable[[DictConfig, list[str], Any], Any]) -> None:
+    def _by_key(self, noted: Callable[..., Any]) -> bool:
         """Put the jobs of each batch key side by side (keys in the order they first come), from
-        the keys the config loader noted when the sweeper checked the jobs: a sweep whose jobs of
-        one key are far apart (seeds of simulated instances: ``seed`` varies fastest) then sends
-        whole batches without composing the sweep ahead. A job whose key was not noted stays a
-        group of its own, where it is."""
+        the keys the config loader noted when the sweeper checked the jobs (Hydra's sweeper
+        composes every job): a sweep whose jobs of one key are far apart (seeds of simulated
+        instances: ``seed`` varies fastest) then sends whole batches without composing the sweep
+        ahead. False, nothing changed, when a job's key was not noted."""
         unknown = object()
         keys = [noted(self.launcher.config, overrides, unknown) for _, overrides in self.todo]
         if any(k is unknown for k in keys):
-            return
+            return False
         groups: dict[Any, list] = {}
         for job, key in zip(self.todo, keys):
             groups.setdefault(("alone", job[0]) if key is None else key, []).append(job)
         self.todo = collections.deque(job for jobs in groups.values() for job in jobs)
         self.left = collections.Counter(keys)
+        self.noted = noted
+        return True
+
+    def _by_overrides(self) -> None:
+        """Put side by side the jobs that differ only in overrides that do not change the batch
+        key, when the keys were not noted (zrp_ga's sweeper composes a few jobs, not all): a
+        swept key changes the key if the first job with a key gets another key with that
+        override's next value (composed here: one composition per swept key). Jobs are grouped
+        by their values of such keys; each job's own key is still computed as it is composed, and
+        the worker evolves together only the runs that share it, so that a wrong guess here
+        (keys changed only in combination) costs time, never a result."""
+        jobs = list(self.todo)
+        lines = [dict(_split(o) for o in overrides) for _, overrides in jobs]
+        swept = [k for k in dict.fromkeys(k for job in lines for k in job) if len({job.get(k) for job in lines}) > 1]
+        if not swept:
+            return
+        base = next(((i, key) for i in range(min(3, len(jobs))) if (key := self._key_of(jobs[i][1])) is not None), None)
+        if base is None:  # no key among the first jobs (LM, CMA-ES sweeps): in their order
+            return
+        first, key = base
+        changing = []
+        for k in swept:
+            value = lines[first].get(k)
+            other = next((job[k] for job in lines if k in job and job[k] != value), None)
+            # the first job with the key's next value, overrides in their order (a job of the sweep, whose config is kept for it)
+            variant = [f"{k}={other}" if _split(o)[0] == k else o for o in jobs[first][1]]
+            if k not in lines[first] or other is None or self._key_of(variant) != key:
+                changing.append(k)
+        self.group = {idx: ("group", *(job.get(k) for k in changing)) for (idx, _), job in zip(jobs, lines)}
+        groups: dict[Any, list] = {}
+        for job in jobs:
+            groups.setdefault(self.group[job[0]], []).append(job)
+        self.todo = collections.deque(job for same in groups.values() for job in same)
+        self.left = collections.Counter(self.group.values())
+
+    def _key_of(self, overrides: list[str]) -> Any:
+        """The batch key of a job with these overrides (None: runs alone or does not compose);
+        its config kept for the job (the loader's own kept config is taken by this call)."""
+        try:
+            config = self.compose(overrides)
+        except Exception:
+            return None
+        self.early[tuple(overrides)] = config
+        return self.key(config)
 
     def show_progress(self, close: bool = False) -> None:
         """The progress line (``_progress``): jobs ended, failed, running (a worker's first batch)."""
@@ -391,9 +439,9 @@ class _Dispatcher:
         """Compose the next job and put it with those of its batch key (or alone)."""
         idx, overrides = self.todo.popleft()
         loader = self.launcher.hydra_context.config_loader
-        if self.left is not None:  # the keys noted by the loader, which keeps the configs too (ComposingLoader)
+        if self.noted is not None and self.left is not None:  # the keys noted by the loader, which keeps the configs too (ComposingLoader)
             data = loader.pickled_config(self.launcher.config, overrides)
-            key = loader.noted_for(self.launcher.config, overrides)
+            key = self.noted(self.launcher.config, overrides)
             self.left[key] -= 1
         else:
             config = self.compose(overrides)
@@ -401,6 +449,9 @@ class _Dispatcher:
             data = kept(self.launcher.config, overrides, compose=False) if kept else None
             key = self.key(config) if data is None else loader.noted_for(self.launcher.config, overrides)
             data = pickle.dumps(config) if data is None else data
+            if self.group is not None and self.left is not None:  # sent with the jobs of its group (the worker splits it by key)
+                self.left[self.group[idx]] -= 1
+                key = None if key is None else self.group[idx]
         job = (idx, overrides, data)
         self.alone.append(job) if key is None else self.pending.setdefault(key, []).append(job)
         self.waiting += 1
@@ -426,8 +477,10 @@ class _Dispatcher:
             return None
 
     def compose(self, overrides: list[str]) -> DictConfig:
-        """The job's config, composed now (while the workers run the jobs before it)."""
-        return self.launcher.hydra_context.config_loader.load_sweep_config(self.launcher.config, overrides)
+        """The job's config, composed now (while the workers run the jobs before it), or when
+        the jobs were grouped (``_key_of``)."""
+        early = self.early.pop(tuple(overrides), None)
+        return early if early is not None else self.launcher.hydra_context.config_loader.load_sweep_config(self.launcher.config, overrides)
 
     def returned(self, idx: int, ret: JobReturn) -> None:
         self.returns[idx] = ret
@@ -477,6 +530,12 @@ class _Dispatcher:
                 return
             self.table_failed = True  # said once
             log.warning(f"{exc.filename or self.sweep}: not written ({exc.strerror or exc}); manifest.jsonl holds the jobs' states")
+
+
+def _split(override: str) -> tuple[str, str | None]:
+    """An override line's key (with its ``+``, ``~`` and ``@package``) and value (None: none)."""
+    key, eq, value = override.partition("=")
+    return key, value if eq else None
 
 
 def _lost_job(launcher: Any, idx: int, overrides: list[str], error: Exception, state: str | None) -> JobReturn:
