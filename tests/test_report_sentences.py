@@ -163,6 +163,34 @@ def test_unrelated_runs_are_grouped_and_never_compared_across(tmp_path):
     assert len(t["within"]) == 0 and t["friedman"] is None
 
 
+def test_unrelated_runs_of_two_varied_settings_are_not_pooled_across_instances(tmp_path):
+    """One run each, every run on its own instance: a GA with the pseudo-inverse step on P, a GA
+    without on Q, LM on R, CMA-ES on S (two settings vary, algorithm and refine). No value of a
+    setting shares an instance with another, so no setting is compared (neither pooled across the
+    instances nor "makes no significant difference" from no test); and one run per instance ties
+    with nothing, so no sentence says that all configurations reach the floor."""
+    def ga(refine):
+        cfg = {**_ga("blend"), "refine": {"op": {"_target_": "zrp_ga.operators.refine.pinv"} if refine == "pinv" else None,
+                                         "share": 0.1 if refine == "pinv" else 0.0}}  # fmt: skip
+        return dict(config=cfg, choices={"algorithm": "ga", "refine": refine})
+
+    fake_run(tmp_path / "runs" / "ga-pinv", "P", "ga", [(10, 5.0), (200, 1e-18)], nominal=0.05, **ga("pinv"))
+    fake_run(tmp_path / "runs" / "ga-none", "Q", "ga", [(10, 5.0), (200, 0.07)], **ga("none"))
+    fake_run(tmp_path / "runs" / "lm", "R", "lm", [(1, 9.0), (11, 0.002)], choices={"algorithm": "lm"})
+    fake_run(tmp_path / "runs" / "cma", "S", "cmaes", [(10, 7.0), (220, 0.09)], choices={"algorithm": "cmaes"})
+    t = report.build_tables(report.find_runs([tmp_path / "runs"])[0])
+    assert t["runs"]["configuration"].nunique() == 4 and t["runs"]["instance"].nunique() == 4
+    said = conclusions.sentences(t)
+    assert any("4 unrelated groups that never shared an instance" in s for s in said["In short"]), said
+    assert not any("reach the floor" in s or "reach the same cost" in s for s in said["In short"]), said["In short"]
+    assert not any(q["tied"] for q in t["questions"].values())  # no "Evaluations to reach the floor" figure either
+    assert said["Each setting over the others"] == [], said["Each setting over the others"]
+    assert not any(BROKEN.search(s) for lines in said.values() for s in lines)
+    recs = conclusions.records(t)["conclusions"]
+    assert not [c for c in recs if c["scope"].get("instance") == "all"], recs
+    assert len(t["factor_medians"]) == 0  # nor a main-effects figure setting one instance's value beside another's
+
+
 # --- every template with empty, single and NaN inputs ------------------------------------------------
 NAN = math.nan
 ANSWER = dict(best="blend", instances=1, runs=1, ratio=NAN, ratio_lo=NAN, ratio_hi=NAN, val=NAN, lm_val=NAN, tol=0.01, within=0,
