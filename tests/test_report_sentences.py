@@ -15,7 +15,7 @@ from report_fakes import ALGORITHMS, fake_run
 from scipy import stats as sps
 
 from zrp_ga import report
-from zrp_ga.report import conclusions, stats
+from zrp_ga.report import conclusions, drawing, stats
 
 BROKEN = re.compile(r"\bnan\b|\(,|\(\)|\(\s*;|;\s*\)|p >= nan|  |\s\.|\.\.(?!\.)|\binf\b", re.IGNORECASE)
 
@@ -178,7 +178,8 @@ def test_unrelated_runs_of_two_varied_settings_are_not_pooled_across_instances(t
     fake_run(tmp_path / "runs" / "ga-none", "Q", "ga", [(10, 5.0), (200, 0.07)], **ga("none"))
     fake_run(tmp_path / "runs" / "lm", "R", "lm", [(1, 9.0), (11, 0.002)], choices={"algorithm": "lm"})
     fake_run(tmp_path / "runs" / "cma", "S", "cmaes", [(10, 7.0), (220, 0.09)], choices={"algorithm": "cmaes"})
-    t = report.build_tables(report.find_runs([tmp_path / "runs"])[0])
+    runs = report.find_runs([tmp_path / "runs"])[0]
+    t = report.build_tables(runs)
     assert t["runs"]["configuration"].nunique() == 4 and t["runs"]["instance"].nunique() == 4
     said = conclusions.sentences(t)
     assert any("4 unrelated groups that never shared an instance" in s for s in said["In short"]), said
@@ -189,6 +190,16 @@ def test_unrelated_runs_of_two_varied_settings_are_not_pooled_across_instances(t
     recs = conclusions.records(t)["conclusions"]
     assert not [c for c in recs if c["scope"].get("instance") == "all"], recs
     assert len(t["factor_medians"]) == 0  # nor a main-effects figure setting one instance's value beside another's
+    assert len(t["interactions"]) == 0  # nor an interaction test on an instance where a setting has one value
+    with pytest.MonkeyPatch.context() as mp:  # the figures' descriptions, without drawing them: no lowest and highest across groups
+        mp.setattr(drawing, "_each", lambda work, specs, meanwhile=None: ["" for _ in specs])
+        figs, _ = drawing.draw(runs, t, tmp_path, ("png",), t["rule"])
+    described = [f for f in figs if f["name"] != "fig2_convergence"]  # (Fig. 2 draws one instance)
+    assert {f["name"] for f in described} >= {"convergence_by_configuration", "ecdf_evals_to_target", "validation_error_boxplot"}
+    for f in described:
+        assert not re.search(r"lowest|highest|reaches", f["alt"]), f["alt"]
+        assert "4 groups that never shared an instance" in f["alt"], f["alt"]
+    assert list(t["summary"]["group"]) == sorted(t["summary"]["group"])
 
 
 # --- every template with empty, single and NaN inputs ------------------------------------------------

@@ -184,6 +184,8 @@ def interactions(runs_df: pd.DataFrame, keys: list[str], asked: dict[str, dict])
     for a, b in itertools.combinations(varying, 2):
         for instance, g in runs_df.groupby("instance", sort=False):
             g = g[(g[a] != "") & (g[b] != "")]
+            if g[a].nunique() < 2 or g[b].nunique() < 2:  # a setting held on this instance: no interaction to test
+                continue
             q = asked[instance]
             if q["tied"] and q["column"] == EVALS and g[EVALS].nunique() < 2:
                 continue
