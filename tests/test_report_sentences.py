@@ -202,6 +202,24 @@ def test_unrelated_runs_of_two_varied_settings_are_not_pooled_across_instances(t
     assert list(t["summary"]["group"]) == sorted(t["summary"]["group"])
 
 
+
+def test_conclusions_json_gives_the_tolerance_each_instance_used(tmp_path):
+    """Runs at the round-off floor (final 1e-18 on a nominal cost of 0.05): f_ref = 1e-9 x 0.05
+    and the tolerance is never below it, so each test there tied costs within 1 x f_ref, not
+    the 1% the setting says; the page says 100% of f_ref and conclusions.json must agree."""
+    for seed in range(2):
+        for cx in ("blend", "sbx"):
+            _run(tmp_path / "runs", f"{cx}-{seed}", "P", cx, seed, final=1e-18 * (1 + seed), floor=None)
+            _run(tmp_path / "runs", f"Q-{cx}-{seed}", "Q", cx, seed, final=2.0 + 0.5 * seed)
+    for path in (tmp_path / "runs").glob("*/summary.json"):  # nominal 0.05 on P: round-off floor 5e-11
+        if path.parent.name[0] != "Q":
+            path.write_text(path.read_text().replace('"nominal_cost": 100.0', '"nominal_cost": 0.05'))
+    t = report.build_tables(report.find_runs([tmp_path / "runs"])[0])
+    found = conclusions.records(t)
+    assert found["tolerance"] == 0.01  # the setting: the tightest level 1.01 - 1, without its round-off
+    assert found["tolerance_by_instance"] == {"P": 1.0, "Q": 0.01}
+    assert json.loads(json.dumps(found))["tolerance_by_instance"]["P"] == 1.0
+
 # --- every template with empty, single and NaN inputs ------------------------------------------------
 NAN = math.nan
 ANSWER = dict(best="blend", instances=1, runs=1, ratio=NAN, ratio_lo=NAN, ratio_hi=NAN, val=NAN, lm_val=NAN, tol=0.01, within=0,
