@@ -219,6 +219,8 @@ def test_conclusions_json_gives_the_tolerance_each_instance_used(tmp_path):
     assert found["tolerance"] == 0.01  # the setting: the tightest level 1.01 - 1, without its round-off
     assert found["tolerance_by_instance"] == {"P": 1.0, "Q": 0.01}
     assert json.loads(json.dumps(found))["tolerance_by_instance"]["P"] == 1.0
+    first = conclusions.sentences(t)["In short"]  # P's runs tie within its tolerance, Q's do not: the sentence gives P's
+    assert any(s.startswith("On 1 of the 2 instances (P) every run ends within the tolerance (100% of f_ref)") for s in first), first
 
 # --- every template with empty, single and NaN inputs ------------------------------------------------
 NAN = math.nan

@@ -373,8 +373,9 @@ def sentences(t: dict) -> dict[str, list[str]]:
     tied = [i for i, q in asked.items() if q["tied"]]
     sizes = [(int(g["configuration"].nunique()), int(g["instance"].nunique())) for _, g in t["runs"].groupby("group", sort=True)]
     seeds = int(t["runs"]["seed"].nunique()) if t.get("seed_drew_instance") else 0
+    tol = floors.loc[floors["instance"].isin(tied), "tolerance"]  # the tied instances' own (the round-off floor's may be larger)
     first = (reference_sentence(t.get("answer")) + tied_sentence(tied, len(asked), all(asked[i]["at_floor"] for i in tied),
-             float(floors["tolerance"].min()) if len(floors) else math.nan)
+             float(tol.max()) if len(tol) else math.nan)
              + no_reference_sentence(_without_reference(t))
              + seed_instance_sentence(seeds)
              + groups_sentence(sizes))  # fmt: skip
