@@ -15,7 +15,7 @@ from report_fakes import ALGORITHMS, fake_run
 from scipy import stats as sps
 
 from zrp_ga import report
-from zrp_ga.report import conclusions, stats
+from zrp_ga.report import conclusions, drawing, stats
 
 BROKEN = re.compile(r"\bnan\b|\(,|\(\)|\(\s*;|;\s*\)|p >= nan|  |\s\.|\.\.(?!\.)|\binf\b", re.IGNORECASE)
 
@@ -162,6 +162,65 @@ def test_unrelated_runs_are_grouped_and_never_compared_across(tmp_path):
             assert on[a] & on[b], c  # compared only where both ran
     assert len(t["within"]) == 0 and t["friedman"] is None
 
+
+def test_unrelated_runs_of_two_varied_settings_are_not_pooled_across_instances(tmp_path):
+    """One run each, every run on its own instance: a GA with the pseudo-inverse step on P, a GA
+    without on Q, LM on R, CMA-ES on S (two settings vary, algorithm and refine). No value of a
+    setting shares an instance with another, so no setting is compared (neither pooled across the
+    instances nor "makes no significant difference" from no test); and one run per instance ties
+    with nothing, so no sentence says that all configurations reach the floor."""
+    def ga(refine):
+        cfg = {**_ga("blend"), "refine": {"op": {"_target_": "zrp_ga.operators.refine.pinv"} if refine == "pinv" else None,
+                                         "share": 0.1 if refine == "pinv" else 0.0}}  # fmt: skip
+        return dict(config=cfg, choices={"algorithm": "ga", "refine": refine})
+
+    fake_run(tmp_path / "runs" / "ga-pinv", "P", "ga", [(10, 5.0), (200, 1e-18)], nominal=0.05, **ga("pinv"))
+    fake_run(tmp_path / "runs" / "ga-none", "Q", "ga", [(10, 5.0), (200, 0.07)], **ga("none"))
+    fake_run(tmp_path / "runs" / "lm", "R", "lm", [(1, 9.0), (11, 0.002)], choices={"algorithm": "lm"})
+    fake_run(tmp_path / "runs" / "cma", "S", "cmaes", [(10, 7.0), (220, 0.09)], choices={"algorithm": "cmaes"})
+    runs = report.find_runs([tmp_path / "runs"])[0]
+    t = report.build_tables(runs)
+    assert t["runs"]["configuration"].nunique() == 4 and t["runs"]["instance"].nunique() == 4
+    said = conclusions.sentences(t)
+    assert any("4 unrelated groups that never shared an instance" in s for s in said["In short"]), said
+    assert not any("reach the floor" in s or "reach the same cost" in s for s in said["In short"]), said["In short"]
+    assert not any(q["tied"] for q in t["questions"].values())  # no "Evaluations to reach the floor" figure either
+    assert said["Each setting over the others"] == [], said["Each setting over the others"]
+    assert not any(BROKEN.search(s) for lines in said.values() for s in lines)
+    recs = conclusions.records(t)["conclusions"]
+    assert not [c for c in recs if c["scope"].get("instance") == "all"], recs
+    assert len(t["factor_medians"]) == 0  # nor a main-effects figure setting one instance's value beside another's
+    assert len(t["interactions"]) == 0  # nor an interaction test on an instance where a setting has one value
+    with pytest.MonkeyPatch.context() as mp:  # the figures' descriptions, without drawing them: no lowest and highest across groups
+        mp.setattr(drawing, "_each", lambda work, specs, meanwhile=None: ["" for _ in specs])
+        figs, _ = drawing.draw(runs, t, tmp_path, ("png",), t["rule"])
+    described = [f for f in figs if f["name"] != "fig2_convergence"]  # (Fig. 2 draws one instance)
+    assert {f["name"] for f in described} >= {"convergence_by_configuration", "ecdf_evals_to_target", "validation_error_boxplot"}
+    for f in described:
+        assert not re.search(r"lowest|highest|reaches", f["alt"]), f["alt"]
+        assert "4 groups that never shared an instance" in f["alt"], f["alt"]
+    assert list(t["summary"]["group"]) == sorted(t["summary"]["group"])
+
+
+
+def test_conclusions_json_gives_the_tolerance_each_instance_used(tmp_path):
+    """Runs at the round-off floor (final 1e-18 on a nominal cost of 0.05): f_ref = 1e-9 x 0.05
+    and the tolerance is never below it, so each test there tied costs within 1 x f_ref, not
+    the 1% the setting says; the page says 100% of f_ref and conclusions.json must agree."""
+    for seed in range(2):
+        for cx in ("blend", "sbx"):
+            _run(tmp_path / "runs", f"{cx}-{seed}", "P", cx, seed, final=1e-18 * (1 + seed), floor=None)
+            _run(tmp_path / "runs", f"Q-{cx}-{seed}", "Q", cx, seed, final=2.0 + 0.5 * seed)
+    for path in (tmp_path / "runs").glob("*/summary.json"):  # nominal 0.05 on P: round-off floor 5e-11
+        if path.parent.name[0] != "Q":
+            path.write_text(path.read_text().replace('"nominal_cost": 100.0', '"nominal_cost": 0.05'))
+    t = report.build_tables(report.find_runs([tmp_path / "runs"])[0])
+    found = conclusions.records(t)
+    assert found["tolerance"] == 0.01  # the setting: the tightest level 1.01 - 1, without its round-off
+    assert found["tolerance_by_instance"] == {"P": 1.0, "Q": 0.01}
+    assert json.loads(json.dumps(found))["tolerance_by_instance"]["P"] == 1.0
+    first = conclusions.sentences(t)["In short"]  # P's runs tie within its tolerance, Q's do not: the sentence gives P's
+    assert any(s.startswith("On 1 of the 2 instances (P) every run ends within the tolerance (100% of f_ref)") for s in first), first
 
 # --- every template with empty, single and NaN inputs ------------------------------------------------
 NAN = math.nan

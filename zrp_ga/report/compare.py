@@ -36,7 +36,7 @@ def questions(runs: list[Run], runs_df: pd.DataFrame) -> dict[str, dict]:
     runs_df[EVALS] = np.nan
     for instance, g in runs_df.groupby("instance", sort=False):
         ratio, tol = g["final_over_ref"].to_numpy(dtype=float), float(g["tol"].iloc[0])
-        tied = bool(len(ratio) and np.isfinite(ratio).all() and np.ptp(ratio) <= tol)
+        tied = bool(len(ratio) >= 2 and np.isfinite(ratio).all() and np.ptp(ratio) <= tol)  # one run ties with nothing
         if not tied:
             out[instance] = dict(metric="final cost / f_ref", column=SCORE, tol=1.0, tied=False, at_floor=False, level=math.nan)
             continue
@@ -121,6 +121,15 @@ def _factor_scope(g: pd.DataFrame, key: str, others: list[str], column: str, tol
     return groups, best
 
 
+def _every_value_ran(having: pd.DataFrame, key: str) -> pd.DataFrame:
+    """The runs of the instances on which every value of setting ``key`` ran: across instances a
+    setting's values are compared only there, never a value on one instance against another
+    value on another (a folder of unrelated runs)."""
+    values = having[key].nunique()
+    ran = having.groupby("instance", sort=False)[key].nunique()
+    return having[having["instance"].isin(ran.index[ran == values])]
+
+
 def factorial(runs_df: pd.DataFrame, keys: list[str], asked: dict[str, dict]) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The main effect of each setting over the others, per instance and across instances
     (``instance`` "all"), on each instance's question (across instances: the final-cost score,
@@ -139,16 +148,17 @@ def factorial(runs_df: pd.DataFrame, keys: list[str], asked: dict[str, dict]) ->
         having = runs_df[runs_df[key] != ""]
         others = [k for k in keys if k != key]
         per_setting = []
-        scopes = [*having.groupby("instance", sort=False)] + ([("all", having)] if having["instance"].nunique() > 1 else [])
+        shared = _every_value_ran(having, key)
+        scopes = [*having.groupby("instance", sort=False)] + ([("all", shared)] if shared["instance"].nunique() > 1 else [])
         for instance, g in scopes:  # across instances only where there are several: else it is the one instance again
             q = asked.get(instance, q_all)
+            groups, best = _factor_scope(g, key, others, q["column"], q["tol"], instance == "all")
+            if len(groups) < 2:  # one value here: nothing to set it against (no line in the main effects either)
+                continue
             for v, h in g.groupby(key, sort=True):
                 medians.append(dict(setting=key, instance=instance, value=describe(key, str(v)), runs=len(h),
                                     median_final_over_ref=float(h["final_over_ref"].median()),
                                     median=float(h[q["column"]].median()), metric=q["metric"]))  # fmt: skip
-            groups, best = _factor_scope(g, key, others, q["column"], q["tol"], instance == "all")
-            if len(groups) < 2:
-                continue
             t = stats.compare_design(groups, best=best, tol=q["tol"])
             for i, (name, value) in enumerate((("setting", key), ("instance", instance), ("best", best), ("metric", q["metric"]))):
                 t.insert(i, name, value)
@@ -174,6 +184,8 @@ def interactions(runs_df: pd.DataFrame, keys: list[str], asked: dict[str, dict])
     for a, b in itertools.combinations(varying, 2):
         for instance, g in runs_df.groupby("instance", sort=False):
             g = g[(g[a] != "") & (g[b] != "")]
+            if g[a].nunique() < 2 or g[b].nunique() < 2:  # a setting held on this instance: no interaction to test
+                continue
             q = asked[instance]
             if q["tied"] and q["column"] == EVALS and g[EVALS].nunique() < 2:
                 continue

@@ -373,8 +373,9 @@ def sentences(t: dict) -> dict[str, list[str]]:
     tied = [i for i, q in asked.items() if q["tied"]]
     sizes = [(int(g["configuration"].nunique()), int(g["instance"].nunique())) for _, g in t["runs"].groupby("group", sort=True)]
     seeds = int(t["runs"]["seed"].nunique()) if t.get("seed_drew_instance") else 0
+    tol = floors.loc[floors["instance"].isin(tied), "tolerance"]  # the tied instances' own (the round-off floor's may be larger)
     first = (reference_sentence(t.get("answer")) + tied_sentence(tied, len(asked), all(asked[i]["at_floor"] for i in tied),
-             float(floors["tolerance"].min()) if len(floors) else math.nan)
+             float(tol.max()) if len(tol) else math.nan)
              + no_reference_sentence(_without_reference(t))
              + seed_instance_sentence(seeds)
              + groups_sentence(sizes))  # fmt: skip
@@ -416,7 +417,9 @@ def records(t: dict) -> dict:
     validation error, across instances, against the reference), the question, the test, its
     statistic, p and p corrected (Holm), the effect with its 95% interval, the equivalence test
     and the verdict (better, worse, equivalent or undecided, from a's side); ``tests``: the
-    omnibus tests (verdict differ, equivalent or undecided); ``tolerance`` and ``alpha``."""
+    omnibus tests (verdict differ, equivalent or undecided); ``tolerance`` (the setting, relative
+    to f_ref) and ``tolerance_by_instance`` (the one each instance's tests used, relative to its
+    f_ref: never below the round-off floor) and ``alpha``."""
     out, tests = [], []
     for kind, df, where in (("within instance", t["within"], ("instance",)), ("setting", t["factors"], ("setting", "instance")),
                             ("validation error", t["statistics"], ("instance",))):  # fmt: skip
@@ -439,7 +442,10 @@ def records(t: dict) -> dict:
                                     ci95=[_json(a["ratio_lo"]), _json(a["ratio_hi"])]),
                         equivalence=dict(test="TOST at +-tolerance", p=_json(a["p_equivalence"]), p_holm=_json(a["p_equivalence"])),
                         verdict=a["verdict"]))  # fmt: skip
-    return dict(alpha=ALPHA, tolerance=_json(t["rule"].resolution()), conclusions=out, tests=tests)
+    floors = t["floors"]
+    by_instance = {str(i): _json(float(f"{x:.12g}")) for i, x in zip(floors["instance"], floors["tolerance"])} if len(floors) else {}
+    return dict(alpha=ALPHA, tolerance=_json(float(f"{t['rule'].resolution():.12g}")), tolerance_by_instance=by_instance,
+                conclusions=out, tests=tests)  # fmt: skip
 
 
 def _nemenyi(f: dict) -> list[dict]:

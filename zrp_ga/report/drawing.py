@@ -63,6 +63,13 @@ def _lm(t: dict) -> pd.DataFrame:
     return ref[ref["reference"] == "Levenberg-Marquardt"]
 
 
+def _unrelated(t: dict) -> str:
+    """Where the runs form groups that never shared an instance: the sentence that replaces a
+    figure's lowest-and-highest (which would compare runs across instances); else ""."""
+    n = int(t["runs"]["group"].nunique()) if "group" in t["runs"] else 1
+    return f"The configurations form {n} groups that never shared an instance: they are not compared here." if n > 1 else ""
+
+
 def _names(t: dict) -> dict[str, str]:
     """Each configuration's short label for legends, "(LM, reference)" marked."""
     names = short_labels(t["shown"])
@@ -195,8 +202,8 @@ def _convergence(runs: list[Run], t: dict, rule: TargetRule, shown: list[str], o
     ends = {lab: float(b[1][1][np.isfinite(b[1][1])][-1]) if np.isfinite(b[1][1]).any() else math.nan for lab, b in bands.items()}
     ranked = sorted((v, k) for k, v in ends.items() if math.isfinite(v))
     alt = (f"Line chart, both axes logarithmic: the median best cost ({s['ylabel']}) of each of {len(bands)} configurations against "
-           f"evaluations, 1 to {top:,}. " + (f"At the end the lowest median is {ranked[0][1]} at {ranked[0][0]:.3g} and the highest "
-           f"{ranked[-1][1]} at {ranked[-1][0]:.3g}. " if ranked else "")
+           f"evaluations, 1 to {top:,}. " + (f"{_unrelated(t)} " if _unrelated(t) else f"At the end the lowest median is {ranked[0][1]} at "
+           f"{ranked[0][0]:.3g} and the highest {ranked[-1][1]} at {ranked[-1][0]:.3g}. " if ranked else "")
            + (f"LM, the reference, reaches {reference[1]:.3g} in {reference[0]:,.0f} evaluations." if reference else ""))  # fmt: skip
     counts = {n for _, _, n in bands.values()}
     runs_said = f"{counts.pop()} runs each" if len(counts) == 1 else "the number of runs in brackets"
@@ -243,8 +250,8 @@ def _ecdf(runs: list[Run], t: dict, rule: TargetRule, shown: list[str], order: l
             + "Higher and further left is better; the value at the right end tells how close to the floor the runs came (1: every "
               "target, down to 1.01 x f_ref). ")  # fmt: skip
     alt = (f"Step chart: the fraction of the {targets.ECDF_TARGETS} targets per instance reached against evaluations per gene, one "
-           "line per configuration. " + (f"At the end of its runs {ranked[0][1]} reaches {ranked[0][0]:.2f} of the targets, "
-           f"{ranked[-1][1]} {ranked[-1][0]:.2f}." if ranked else ""))  # fmt: skip
+           "line per configuration. " + (_unrelated(t) or (f"At the end of its runs {ranked[0][1]} reaches {ranked[0][0]:.2f} of the "
+           f"targets, {ranked[-1][1]} {ranked[-1][0]:.2f}." if ranked else "")))  # fmt: skip
     n = targets.ECDF_TARGETS
     specs = [_spec("ecdf_evals_to_target", "Targets reached, over all instances",
                    base + ("Aggregated over the instances, each weighing the same. " if len(per) > 1 else "") + which, alt,
@@ -273,7 +280,8 @@ def _evaluations(t: dict, shown: list[str]) -> dict | None:
         return None
     meds = sorted((float(np.median(v)), k) for k, v in data.items())
     alt = (f"Box plots, one per configuration, of the evaluations each run took to reach the cost every run reached, on "
-           f"{len(tied)} instance(s). Lowest median: {meds[0][1]}, {meds[0][0]:,.0f}; highest: {meds[-1][1]}, {meds[-1][0]:,.0f}.")  # fmt: skip
+           f"{len(tied)} instance(s). " + (_unrelated(t) or f"Lowest median: {meds[0][1]}, {meds[0][0]:,.0f}; highest: {meds[-1][1]}, "
+           f"{meds[-1][0]:,.0f}."))  # fmt: skip
     return _spec("evaluations_boxplot", "Evaluations to reach the floor",
                  f"Every run ends within the tolerance of every other on {', '.join(tied)}, so final costs tell nothing apart: "
                  "this is what still differs, the evaluations each run took to reach the cost every run reached (box: quartiles, "
@@ -359,8 +367,9 @@ def _validation(t: dict, shown: list[str], order: list[str]) -> dict | None:
     _, which = _which(shown, order)
     meds = sorted((float(np.median(v)), k) for k, v in data.items())
     xlabel = "validation RMS error, mm" + (f"\n(nominal robot: {nominal.median():.3g} mm)" if len(nominal) else "")
-    alt = (f"Box plots of the validation RMS error (mm), one per configuration: lowest median {meds[0][1]} at {meds[0][0]:.3g} mm, "
-           f"highest {meds[-1][1]} at {meds[-1][0]:.3g} mm" + (f"; LM, the reference, {ref:.3g} mm." if ref is not None else "."))  # fmt: skip
+    alt = (f"Box plots of the validation RMS error (mm), one per configuration. {_unrelated(t)}" if _unrelated(t) else
+            f"Box plots of the validation RMS error (mm), one per configuration: lowest median {meds[0][1]} at {meds[0][0]:.3g} mm, "
+            f"highest {meds[-1][1]} at {meds[-1][0]:.3g} mm" + (f"; LM, the reference, {ref:.3g} mm." if ref is not None else "."))  # fmt: skip
     return _spec("validation_error_boxplot", "Validation error",
                  "The RMS position error of each run's calibrated model on poses it was not calibrated on (box: quartiles, line: "
                  "median, whiskers: 1.5 IQR; every run a point)" + ("; the dashed line is LM, the reference" if ref is not None else "")

@@ -167,13 +167,16 @@ def _summary_table(t: dict) -> str:
             "val_rms_mm_median", "nevals_median", "wall_s_median", *[f"success_{n}" for n in rule.names()],
             *[f"ert_{n}" for n in rule.names()]]  # fmt: skip
     cols = [c for c in cols if c in s and not (c.startswith("val_") and s[c].isna().all())]
+    if "group" in s and s["group"].nunique() > 1:
+        cols.insert(1, "group")
     names = {"final_over_ref_median": "final / f_ref, median", "final_cost_median": "final cost, median", "final_cost_q1": "Q1",
              "final_cost_q3": "Q3", "val_rms_mm_median": "validation RMS mm, median", "nevals_median": "evaluations, median",
              "wall_s_median": "wall s, median",
              **{f"success_{n}": f"hit {n}" for n in rule.names()}, **{f"ert_{n}": f"ERT {n}" for n in rule.names()}}  # fmt: skip
     ref = t["reference"]
     parts = ["<h3>Per configuration</h3>",
-             table(s[cols], "Pooled over instances and runs, best first. hit c: share of runs reaching c x f_ref; ERT c: expected "
+             table(s[cols], "Pooled over instances and runs, best first" + (" within each group (the groups never shared an instance: "
+                   "the table does not rank across them)" if "group" in s and s["group"].nunique() > 1 else "") + ". hit c: share of runs reaching c x f_ref; ERT c: expected "
                    "evaluations to reach it (all evaluations spent over the successes; never: no run did).", max_rows=60, names=names)]  # fmt: skip
     if len(ref):
         parts += ["<h3>The reference</h3>",

@@ -104,10 +104,12 @@ def _best_first(summary: pd.DataFrame, tol: float, ert: str) -> pd.DataFrame:
     """The configurations best first: by median final / f_ref, medians within the tolerance
     ``tol`` tied (:func:`zrp_ga.report.stats.snap`), then by the median evaluations to the cost
     every run reached (instances where all are tied), then by the expected running time to the
-    primary target (column ``ert``), then by the median final / f_ref itself."""
+    primary target (column ``ert``), then by the median final / f_ref itself; group by group where
+    the runs form groups that never shared an instance (no order across them)."""
     key = summary.assign(_r=stats.snap(summary["final_over_ref_median"].to_numpy(), tol),
                          _e=summary["evals_to_common_median"].fillna(np.inf), _t=summary.get(ert, pd.Series(np.inf, index=summary.index)).fillna(np.inf))  # fmt: skip
-    key = key.sort_values(["_r", "_e", "_t", "final_over_ref_median"], kind="stable", na_position="last")
+    by = ["group"] if "group" in key and key["group"].nunique() > 1 else []
+    key = key.sort_values([*by, "_r", "_e", "_t", "final_over_ref_median"], kind="stable", na_position="last")
     return summary.loc[key.index].reset_index(drop=True)
 
 
