@@ -72,7 +72,7 @@ def measured(robot, calibration, settings: dict) -> dict:
         over.append(f"robot.file={robot}")
     over += [f"problem.{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in settings.items()]
     p = build.prepare(config.load(over), None)
-    return execute.execute(p, None, False)[1]
+    return execute.execute(p, False)[1]
 
 
 def main() -> None:
