@@ -2,7 +2,7 @@
 its results stay the same.
 
     python experiments/bench_sweep.py [--repeats 3] [--big-seeds 210] [--studies [NAME ...]]
-                                      [--before REV] [--hydra-launchers] [--sweeper zrp_ga] [--out DIR]
+                                      [--before REV] [--hydra-launchers] [--sweeper basic] [--out DIR]
 
 One command, on this machine's cores, writing results/bench_sweep.md:
 
@@ -33,8 +33,8 @@ One command, on this machine's cores, writing results/bench_sweep.md:
   their reports with the committed options, without figures) and their tables' medians and
   quartiles compared with the committed ones (see :data:`STUDIES`; without names the cheap ones,
   :data:`CHEAP`).
-- ``--sweeper zrp_ga``: the current code's sweeps (the grid, its lockstep=false twin, the big study)
-  with zrp_ga's sweeper (``hydra/sweeper=zrp_ga``) instead of Hydra's basic one.
+- ``--sweeper basic``: the current code's sweeps (the grid, its lockstep=false twin, the big study)
+  with Hydra's basic sweeper (``hydra/sweeper=basic``) instead of zrp_ga's, ``-m``'s default.
 - ``--before REV``: the default run and the grid with the code of git revision ``REV`` too,
   from a copy of that tree on ``PYTHONPATH``. ``--hydra-launchers``: the grid with Hydra's
   joblib launcher too (and its basic one with ``--before``); they take minutes.
@@ -71,7 +71,7 @@ ROOT = Path(__file__).resolve().parents[1]
 GRID = ["experiment=operator_grid"]
 LAUNCHERS = {"basic": [], "joblib": ["hydra/launcher=joblib"], "zrp_ga": ["hydra/launcher=local"]}
 LOCAL = LAUNCHERS["zrp_ga"]
-SWEEPERS = {"basic": [], "zrp_ga": ["hydra/sweeper=zrp_ga"]}
+SWEEPERS = {"basic": ["hydra/sweeper=basic"], "zrp_ga": []}  # zrp_ga's: -m's default since ea076e7 (hparams_search=none)
 RUN_MODULES = ("zrp_ga.cli.main zrp_ga.io.presets zrp_ga.problems.simulated zrp_ga.algorithms.ga zrp_ga.operators "
                "zrp_ga.run.callbacks zrp_ga.run.summary zrp_ga.io.records zrp_ga.run.checkpoint threadpoolctl")  # fmt: skip
 OFFSPRING = 50  # lambda of the grid's runs
@@ -312,8 +312,8 @@ def main() -> None:
                              f"no name: {', '.join(CHEAP)})")  # fmt: skip
     parser.add_argument("--before", default=None, help="git revision to compare with (e.g. 3befbdd)")
     parser.add_argument("--hydra-launchers", action="store_true", help="the grid with Hydra's launchers too (minutes)")
-    parser.add_argument("--sweeper", choices=list(SWEEPERS), default="basic",
-                        help="the sweeper of the current code's sweeps (zrp_ga: hydra/sweeper=zrp_ga)")  # fmt: skip
+    parser.add_argument("--sweeper", choices=list(SWEEPERS), default="zrp_ga",
+                        help="the sweeper of the current code's sweeps (basic: hydra/sweeper=basic, Hydra's)")  # fmt: skip
     parser.add_argument("--kernel-batches", default=f"{OFFSPRING},{48 * OFFSPRING}",
                         help="genomes per kernel call of the kernel-only timing (one run's offspring; a lockstep batch)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=None)
@@ -403,8 +403,8 @@ def report(raw: dict) -> str:
     cmd = "python experiments/bench_sweep.py" + (f" --before {args.before}" if args.before else "")
     cmd += f" --repeats {args.repeats} --big-seeds {args.big_seeds}"
     cmd += (" --studies " + " ".join(studies) if studies else "") + (" --hydra-launchers" if args.hydra_launchers else "")
-    sweeper = getattr(args, "sweeper", "basic")  # raw.json of earlier runs: no sweeper kept
-    cmd += f" --sweeper {sweeper}" if sweeper != "basic" else ""
+    sweeper = getattr(args, "sweeper", "basic")  # raw.json of earlier runs: no sweeper kept (Hydra's was the default)
+    cmd += f" --sweeper {sweeper}" if sweeper != "zrp_ga" else ""
     lines = [
         "# Sweeps at the speed of the kernel: what runs and sweeps cost beyond their pose evaluations", "",
         f"Command: `{cmd}`, on {n} cores (Python {sys.version.split()[0]}). Machine load average "
@@ -476,7 +476,7 @@ def report(raw: dict) -> str:
     big = raw.get("big")
     if big:
         lines += ["", f"## A {big['runs']:,}-run study (the grid with {args.big_seeds} seeds, zrp_ga's launcher)", "",
-                  f"`zrp-ga -m experiment=operator_grid hydra/launcher=local{' hydra/sweeper=zrp_ga' * (sweeper == 'zrp_ga')} "
+                  f"`zrp-ga -m experiment=operator_grid hydra/launcher=local{' hydra/sweeper=basic' * (sweeper == 'basic')} "
                   f"seed=range({args.big_seeds})`: "
                   f"**{big['wall_s']:.1f} s wall** ({big['wall_s'] / 60:.1f} min; {big['wall_s'] / big['runs'] * 1000:.1f} s per "
                   f"1,000 runs), {big['cpu_s']:.1f} s CPU ({big['cpu_s'] / big['runs'] * 1000:.0f} ms per run); "
