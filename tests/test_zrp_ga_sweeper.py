@@ -155,3 +155,14 @@ def test_the_launcher_sends_the_runs_of_one_instance_together_without_every_job_
     assert sorted(order) == list(range(48))
     seeds = [job % 3 for job in order]
     assert seeds == sorted(seeds, key=seeds.index), order  # each seed's 16 jobs side by side
+
+
+def test_a_config_composed_without_the_app_finds_the_default_sweeper(tmp_path):
+    """``zrp_ga.config.load`` (which ``zrp_ga.calibrate`` uses) in a fresh process that never
+    imported the plugins: hparams_search=none's sweeper (zrp_ga's) must be stored, as the
+    launcher's is, or every composition fails ("Could not find 'hydra/sweeper/zrp_ga'")."""
+    code = ("import sys; from zrp_ga import config; cfg = config.compose(['seed=3'], return_hydra_config=True); "
+            "assert 'hydra_plugins.zrp_ga_sweeper.sweeper' in sys.modules; print(cfg.hydra.sweeper._target_)")  # fmt: skip
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip() == "hydra_plugins.zrp_ga_sweeper.sweeper.ZrpGaSweeper"

@@ -116,24 +116,29 @@ def compose(overrides: list[str] | tuple[str, ...] = (), return_hydra_config: bo
 
 
 def launcher_stored() -> None:
-    """zrp_ga's launcher's settings (``hydra/launcher=zrp_ga``, which ``conf/config.yaml``'s default
-    launcher extends) in Hydra's ConfigStore, as Hydra's plugin discovery stores them when it
-    imports the plugin: hydra-core 1.3 does not find it in an editable install (``pip install
-    -e``), whose import hook its scan of the ``hydra_plugins`` package cannot list. Imported by
-    name (the plugin is above this module's layer, as Hydra's discovery imports it)."""
+    """zrp_ga's launcher's and sweeper's settings (``hydra/launcher=zrp_ga``, which
+    ``conf/config.yaml``'s default launcher extends; ``hydra/sweeper=zrp_ga``, which
+    ``hparams_search=none``, the default, chooses) in Hydra's ConfigStore, as Hydra's plugin
+    discovery stores them when it imports the plugins: hydra-core 1.3 does not find them in an
+    editable install (``pip install -e``), whose import hook its scan of the ``hydra_plugins``
+    package cannot list, and a config composed by ``zrp_ga.calibrate`` or ``zrp_ga.config.load``
+    has no plugin scan before it. Imported by name (the plugins are above this module's layer, as
+    Hydra's discovery imports them)."""
     import importlib
 
     from hydra.core.config_store import ConfigStore
 
-    try:
-        stored = "zrp_ga.yaml" in ConfigStore.instance().list("hydra/launcher")
-    except OSError:  # no launcher stored yet
-        stored = False
-    if not stored:
+    for group, module in (("hydra/launcher", "hydra_plugins.zrp_ga_launcher.config"),
+                          ("hydra/sweeper", "hydra_plugins.zrp_ga_sweeper.sweeper")):  # fmt: skip
         try:
-            importlib.import_module("hydra_plugins.zrp_ga_launcher.config")
-        except ImportError:  # the plugin not installed: Hydra names the missing option
-            pass
+            stored = "zrp_ga.yaml" in ConfigStore.instance().list(group)
+        except OSError:  # nothing stored in the group yet
+            stored = False
+        if not stored:
+            try:
+                importlib.import_module(module)
+            except ImportError:  # the plugin not installed: Hydra names the missing option
+                pass
 
 
 def load(overrides: list[str] | tuple[str, ...] = ()) -> schema.Config:
