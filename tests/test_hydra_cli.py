@@ -133,6 +133,67 @@ def test_a_tuning_study_continues_without_repeating_a_trial(tmp_path):
         assert name in tuning
 
 
+@pytest.mark.slow
+def test_a_tuning_study_interrupted_settles_its_trials_and_continues(tmp_path):
+    """``zrp-ga -m hparams_search=ga_optuna`` stopped by Ctrl-C (SIGINT to its process group)
+    while a trial's run has finished and another runs: no trial stays RUNNING in ``optuna.db``,
+    a finished one holds the objective in its folder's ``summary.json``, the others FAIL; the
+    same command continues the study with new trials, none of them repeating settings."""
+    pytest.importorskip("hydra_plugins.hydra_optuna_sweeper", reason="the tune extra: pip install '.[tune]'")
+    import optuna
+
+    tune = ["-m", "hparams_search=ga_optuna", "hydra.sweeper.n_trials=4", "population.max_evals=4000", "hydra.sweep.dir=tune"]
+    sweep = tmp_path / "tune"
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.cli", *tune], cwd=tmp_path, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)  # fmt: skip
+
+    def states() -> dict[str, str]:
+        found = {}
+        for f in sweep.glob("*/status.json"):
+            try:
+                found[f.parent.name] = json.loads(f.read_text())["status"]
+            except (OSError, ValueError, KeyError):
+                pass
+        return found
+
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        now = states()
+        if "done" in now.values() and "running" in now.values():
+            break
+        time.sleep(0.05)
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGINT)
+    try:
+        _, stderr = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise
+    if proc.returncode != 130:
+        pytest.skip(f"the sweep ended before it was stopped (exit code {proc.returncode}; a fast machine)")
+    assert "not continued" in stderr and "new trials" in stderr, stderr[-2000:]
+    url = f"sqlite:///{sweep / 'optuna.db'}"
+    trials = optuna.load_study(study_name="zrp_ga_pure_ga", storage=url).get_trials()
+    assert trials and not [t.number for t in trials if t.state.name == "RUNNING"]
+    done = {k for k, v in states().items() if v == "done"}
+    assert done  # the trial that had finished when the sweep was stopped
+    for t in trials:
+        folder = sweep / str(t.number)
+        if str(t.number) in done:
+            assert t.state.name == "COMPLETE"
+            assert t.value == json.loads((folder / "summary.json").read_text())["objective"]
+            assert json.loads((folder / "summary.json").read_text())["seed"] == t.number  # the trial's own folder
+        else:
+            assert t.state.name == "FAIL"
+
+    zrp_ga(*tune[:2], "hydra.sweeper.n_trials=2", *tune[3:], cwd=tmp_path)
+    again = optuna.load_study(study_name="zrp_ga_pure_ga", storage=url).get_trials()
+    assert len(again) == len(trials) + 2
+    assert [t.state.name for t in again[len(trials) :]] == ["COMPLETE"] * 2
+    assert [(t.state.name, t.value) for t in again[: len(trials)]] == [(t.state.name, t.value) for t in trials]
+    assert len({tuple(sorted(t.params.items())) for t in again}) == len(again)  # no settings proposed twice
+
+
 def test_a_run_stopped_and_resumed_from_the_command_line(tmp_path):
     """A GA run stopped by SIGTERM (as a cluster's time limit stops it), then ``zrp-ga
     resume=DIR``: the run ends with its whole convergence.csv."""
