@@ -5,10 +5,14 @@ Hydra's Optuna sweeper asks the study for a batch of trials, has the launcher ru
 the study their values when the whole batch returned; a sweep stopped in between (Ctrl-C,
 SIGTERM, a killed process) leaves the batch's trials RUNNING in the storage for good, the value
 of a trial whose run had finished never told. :func:`settle` ends them through Optuna's public
-API (``Study.tell``): a trial whose folder (named by its number in the study, as the tuning
-configs name it) holds its run finished (``status.json`` done, ``summary.json``) and made with
-the trial's settings gets the objective that run returned (the summary's ``objective``, what
-:func:`zrp_ga.run.execute.objective` returns to the sweeper), any other FAIL. An interrupted run
+API (``Study.tell``), each trial whose folder in the sweep folder (named by its number in the
+study, as the tuning configs name it) holds a job run with the trial's settings (its
+``.hydra/overrides.yaml``): a finished run (``status.json`` done, ``summary.json`` whole) gives
+the trial the objective it returned (the summary's ``objective``, what
+:func:`zrp_ga.run.execute.objective` returns to the sweeper), any other run FAILs it. A trial
+without a folder (its job had not started) FAILs when the storage is the sweep folder's own
+``optuna.db``, else it is left as it is (it may be another sweep's on a shared storage: Optuna's
+distributed optimisation), as is a trial whose folder holds a job of other settings. An interrupted run
 is not continued: the study's next trials get new numbers, folders and seeds (the sweeper asks
 for new settings), so its checkpoint stays where it is.
 """
@@ -30,6 +34,15 @@ class Study:
     storage: str
     name: str
     sweep: Path
+
+    @property
+    def own(self) -> bool:
+        """Whether the storage is an SQLite file in the sweep folder (as the tuning configs keep
+        it): then every trial in it is this sweep folder's."""
+        prefix = "sqlite:///"
+        if not self.storage.startswith(prefix):
+            return False
+        return Path(self.storage[len(prefix) :]).absolute().parent == self.sweep.absolute()
 
 
 _CURRENT: list[Study] = []  # the study of the sweep this process runs (set by the Manifest callback)
@@ -80,7 +93,12 @@ def settle(study: Study) -> list[tuple[int, str]]:
     loaded = optuna.load_study(study_name=study.name, storage=study.storage)
     settled: list[tuple[int, str]] = []
     for trial in loaded.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
-        value = finished_value(study.sweep / str(trial.number), trial.params)
+        out = study.sweep / str(trial.number)
+        if (out / ".hydra").exists() and not _made_with(out, trial.params):  # that folder is another trial's
+            continue
+        if not (out / ".hydra").exists() and not study.own:  # another sweep's on a shared storage, or not started
+            continue
+        value = finished_objective(out) if (out / ".hydra").exists() else None
         if value is None:
             loaded.tell(trial.number, state=optuna.trial.TrialState.FAIL)
             settled.append((trial.number, "FAIL"))
@@ -90,14 +108,11 @@ def settle(study: Study) -> list[tuple[int, str]]:
     return settled
 
 
-def finished_value(out: Path, params: dict[str, Any]) -> float | None:
-    """The objective the finished run in ``out`` returned, if it ran with ``params`` (the
-    trial's settings, as its folder's ``.hydra/overrides.yaml`` names them); None otherwise."""
+def finished_objective(out: Path) -> float | None:
+    """The objective the run in ``out`` returned, if it finished whole; None otherwise."""
     from zrp_ga.run import directory
 
     if directory.status(out) != "done" or not (out / directory.SUMMARY).exists() or directory.damage(out):
-        return None
-    if not _made_with(out, params):
         return None
     try:
         written = directory.read_summary(out)
@@ -117,6 +132,8 @@ def _made_with(out: Path, params: dict[str, Any]) -> bool:
     try:
         overrides = yaml.safe_load((out / ".hydra" / "overrides.yaml").read_text())
     except (OSError, yaml.YAMLError):
+        return False
+    if not isinstance(overrides, list):
         return False
     given = dict(o.split("=", 1) for o in overrides if isinstance(o, str) and "=" in o)
     for name, value in params.items():
