@@ -1,8 +1,8 @@
 """The command line's and the sweeps' paths through Hydra, as the README's commands take them, in
 processes of their own: ``--version``, ``--help``, an experiment's sweep (``-m experiment=...``)
 on the default launcher, a sweep's config without ``-m``, a tuning study run twice on one Optuna
-storage, a run stopped and resumed, and ``zrp-ga-report`` on them. Marked ``hydra_cli``: CI runs
-these under the newest hydra-core pre-release as well (``.ci/smoke_hydra.sh``). No Hydra or
+storage, one stopped (Ctrl-C, a kill) and continued, a run stopped and resumed, and
+``zrp-ga-report`` on them. Marked ``hydra_cli``: CI runs these under the newest hydra-core pre-release as well (``.ci/smoke_hydra.sh``). No Hydra or
 OmegaConf warning may be printed (hydra-core 1.4 warns of what 1.5 will refuse)."""
 
 from __future__ import annotations
