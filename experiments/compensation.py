@@ -265,6 +265,8 @@ def named(notes: list[str]) -> str:
         sizes = re.findall(r"about ([\d.e+-]+ (?:mm|deg|e)(?: and [\d.e+-]+ deg)?)", note) or re.findall(r"([\d.e+-]+ mm) \(at", note)
         if head in ("flange targets", "orientations", "base frame", "work object") and sizes:
             out.append(f"{head}: {', '.join(sizes)}")
+        elif head == "tool orientation":
+            out.append("tool orientation: the flange's (the probe's turn in its mount, not in the data)")
     return "; ".join(out) or "nothing"
 
 
@@ -311,6 +313,8 @@ def frames_study(root: Path) -> tuple[list[dict], dict]:
              {"work_object": files["work_object"], "tool": "calibration", **mount}),
             ("TCP, tracker frame", tcp_tracker, cell.probe, {"frame": "instrument", "tool": "calibration", **mount}),
         ]  # fmt: skip
+        if not orient:  # the measured point has no orientation: without the mount, the TCP's is the flange's (named)
+            cases.append(("TCP, tracker frame", tcp_tracker, cell.probe, {"frame": "instrument", "tool": "calibration"}))
         for kind, program, truth, settings in cases:
             rows.append({"data": data, **frames_case(cell, run, program, truth, kind, **settings)})
     wo_error = pose_errors(frames.inverse(W) @ cell.probe(tcp_q), frames.inverse(_measured_work_object(files)) @ cell.probe(tcp_q))

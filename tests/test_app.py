@@ -209,6 +209,38 @@ def test_hparams_search_composes_with_optuna():
     assert "population.mu" in cfg.hydra.sweeper.params and cfg.refine.op is None
 
 
+def test_a_tuning_studys_running_trials_settled_only_where_its_folders_say(tmp_path):
+    """zrp_ga.cli.study.settle on trials left RUNNING (the finished run's case: the slow
+    test_a_tuning_study_stopped_settles_its_trials_and_continues): a trial without a folder FAILs
+    when the storage is the sweep folder's own optuna.db and is left RUNNING on another storage
+    (it may be another sweep's); a folder of other settings leaves its trial RUNNING; a folder of
+    the trial's settings whose run did not finish FAILs it."""
+    optuna = pytest.importorskip("optuna")
+    from zrp_ga.cli import study
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    sweep = tmp_path / "tune"
+    sweep.mkdir()
+
+    def running(url: str, n: int) -> list:
+        s = optuna.create_study(study_name="s", storage=url)
+        return [s.ask().suggest_float("mutation.prob", 0.05, 1.0) for _ in range(n)]
+
+    own = f"sqlite:///{sweep / 'optuna.db'}"
+    probs = running(own, 3)
+    (sweep / "1" / ".hydra").mkdir(parents=True)
+    (sweep / "1" / ".hydra" / "overrides.yaml").write_text(f"- mutation.prob={probs[1] / 2!r}\n- hparams_search=ga_optuna\n")
+    (sweep / "2" / ".hydra").mkdir(parents=True)
+    (sweep / "2" / ".hydra" / "overrides.yaml").write_text(f"- mutation.prob={probs[2]!r}\n- hparams_search=ga_optuna\n")
+    (sweep / "2" / "status.json").write_text('{"status": "interrupted"}')
+    assert study.settle(study.Study(own, "s", sweep)) == [(0, "FAIL"), (2, "FAIL")]
+    assert [t.state.name for t in optuna.load_study(study_name="s", storage=own).get_trials()] == ["FAIL", "RUNNING", "FAIL"]
+    shared = f"sqlite:///{tmp_path / 'shared.db'}"
+    running(shared, 1)
+    assert study.settle(study.Study(shared, "s", sweep)) == []
+    assert optuna.load_study(study_name="s", storage=shared).get_trials()[0].state.name == "RUNNING"
+
+
 def test_a_named_instance_is_the_same_whatever_the_runs_seed():
     """problem.seed fixes the simulated instance; the run's seed only varies the optimiser
     (before, the run's seed replaced problem.seed and every seed drew another instance under

@@ -255,3 +255,31 @@ def test_command_line_with_the_mount_in_the_programs_units(tmp_path, capsys):
     for k in range(len(q)):
         got = np.linalg.inv(base) @ dh_fk(table, np.radians(joints.loc[k, [f"q{i}_deg" for i in range(1, 7)]].to_numpy(float)))
         assert np.linalg.norm(got[:3, 3] - T[k, :3, 3]) < 1e-8
+
+
+def test_probe_targets_of_a_positions_only_run_name_the_probes_unknown_turn(tmp_path):
+    """A positions-only run measured a point: its tool has no orientation, so probe poses in the
+    tracker's frame with tool='calibration' are solved as if the probe were turned as the flange.
+    The true probe (turned 21 deg in its mount) then misses the targets' orientation by that turn,
+    by hand; compensation.json must name it (the note), and the mount given removes both."""
+    table = true_table(np.random.default_rng(4))
+    run = run_dir(tmp_path, table)
+    summary = json.loads((run / "summary.json").read_text())
+    summary["config"]["problem"]["use_orientation"] = False
+    summary["calibrated_robot"]["tools"] = {"probe": frames.transform(np.eye(3), PROBE[:3, 3]).tolist()}  # a point
+    (run / "summary.json").write_text(json.dumps(summary))
+    q = program(np.random.default_rng(5))
+    targets = np.array([TRACKER @ dh_fk(table, qk + 0.03) @ PROBE for qk in q])
+    c = zrp_ga.compensate(run, targets, kind="cartesian", frame="instrument", tool="calibration", q_seed=q[0],
+                          unreachable="keep")  # the flange turned as the probe is may lie beyond the limits
+    turn = np.degrees(Rotation.from_matrix(PROBE[:3, :3]).magnitude())  # 21.4 deg
+    assert np.isfinite(c.q[0]).all()
+    got = TRACKER @ dh_fk(table, c.q[0]) @ PROBE
+    assert abs(np.degrees(Rotation.from_matrix(got[:3, :3].T @ targets[0, :3, :3]).magnitude()) - turn) < 0.01
+    note = next((n for n in c.summary()["notes"] if n.startswith("tool orientation")), None)
+    assert note is not None and "the flange's" in note and "--probe-in-flange" in note
+    given = zrp_ga.compensate(run, targets, kind="cartesian", frame="instrument", tool="calibration", q_seed=q[0],
+                              probe_in_flange=PROBE)  # fmt: skip
+    assert not any(n.startswith("tool orientation") for n in given.summary()["notes"])
+    got = TRACKER @ dh_fk(table, given.q[0]) @ PROBE
+    assert Rotation.from_matrix(got[:3, :3].T @ targets[0, :3, :3]).magnitude() < 1e-9

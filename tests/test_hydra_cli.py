@@ -1,8 +1,8 @@
 """The command line's and the sweeps' paths through Hydra, as the README's commands take them, in
 processes of their own: ``--version``, ``--help``, an experiment's sweep (``-m experiment=...``)
 on the default launcher, a sweep's config without ``-m``, a tuning study run twice on one Optuna
-storage, a run stopped and resumed, and ``zrp-ga-report`` on them. Marked ``hydra_cli``: CI runs
-these under the newest hydra-core pre-release as well (``.ci/smoke_hydra.sh``). No Hydra or
+storage, one stopped (Ctrl-C, a kill) and continued, a run stopped and resumed, and
+``zrp-ga-report`` on them. Marked ``hydra_cli``: CI runs these under the newest hydra-core pre-release as well (``.ci/smoke_hydra.sh``). No Hydra or
 OmegaConf warning may be printed (hydra-core 1.4 warns of what 1.5 will refuse)."""
 
 from __future__ import annotations
@@ -131,6 +131,75 @@ def test_a_tuning_study_continues_without_repeating_a_trial(tmp_path):
     assert "6 trials" in tuning and f"{study.best_value:.6g}" in tuning
     for name in study.best_params:
         assert name in tuning
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGKILL], ids=["ctrl_c", "killed"])
+def test_a_tuning_study_stopped_settles_its_trials_and_continues(tmp_path, stop):
+    """``zrp-ga -m hparams_search=ga_optuna`` stopped (its process group signalled) while a
+    trial's run has finished and another runs. Ctrl-C: no trial stays RUNNING in ``optuna.db``,
+    a finished one holds the objective in its folder's ``summary.json``, the others FAIL.
+    Killed (no handler runs): the trials stay RUNNING until the same command continues the study,
+    which settles them so; either way it adds new trials, none of them repeating settings."""
+    pytest.importorskip("hydra_plugins.hydra_optuna_sweeper", reason="the tune extra: pip install '.[tune]'")
+    import optuna
+
+    tune = ["-m", "hparams_search=ga_optuna", "hydra.sweeper.n_trials=4", "population.max_evals=4000", "hydra.sweep.dir=tune"]
+    sweep = tmp_path / "tune"
+    proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.cli", *tune], cwd=tmp_path, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)  # fmt: skip
+
+    def states() -> dict[str, str]:
+        found = {}
+        for f in sweep.glob("*/status.json"):
+            try:
+                found[f.parent.name] = json.loads(f.read_text())["status"]
+            except (OSError, ValueError, KeyError):
+                pass
+        return found
+
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        now = states()
+        if "done" in now.values() and "running" in now.values():
+            break
+        time.sleep(0.05)
+    if proc.poll() is None:
+        os.killpg(proc.pid, stop)
+    try:
+        _, stderr = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise
+    if proc.returncode == 0:
+        pytest.skip("the sweep ended before it was stopped (a fast machine)")
+    url = f"sqlite:///{sweep / 'optuna.db'}"
+    trials = optuna.load_study(study_name="zrp_ga_pure_ga", storage=url).get_trials()
+    done = {int(k) for k, v in states().items() if v == "done"}
+    assert done and trials  # the trial that had finished when the sweep was stopped
+
+    def settled(trials: list) -> None:
+        for t in trials:
+            if t.number in done:
+                summary = json.loads((sweep / str(t.number) / "summary.json").read_text())
+                assert (t.state.name, t.value) == ("COMPLETE", summary["objective"])
+                assert summary["seed"] == t.number  # the trial's own folder
+            else:
+                assert t.state.name == "FAIL"
+
+    if stop == signal.SIGINT:
+        assert proc.returncode == 130
+        assert "not continued" in stderr and "new trials" in stderr, stderr[-2000:]
+        settled(trials)
+    else:
+        assert "RUNNING" in [t.state.name for t in trials]  # what the continued run has to settle
+
+    zrp_ga(*tune[:2], "hydra.sweeper.n_trials=2", *tune[3:], cwd=tmp_path)
+    again = optuna.load_study(study_name="zrp_ga_pure_ga", storage=url).get_trials()
+    assert len(again) == len(trials) + 2
+    assert [t.state.name for t in again[len(trials) :]] == ["COMPLETE"] * 2
+    settled(again[: len(trials)])
+    assert len({tuple(sorted(t.params.items())) for t in again}) == len(again)  # no settings proposed twice
 
 
 def test_a_run_stopped_and_resumed_from_the_command_line(tmp_path):

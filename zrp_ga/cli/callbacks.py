@@ -21,6 +21,7 @@ from hydra.experimental.callback import Callback
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
+from zrp_ga.cli import study
 from zrp_ga.run import directory
 
 
@@ -100,6 +101,7 @@ class Manifest(Callback):
         except (ValueError, OSError) as exc:
             raise Refused(exc) from None
         directory.repair(sweep)
+        study.started(config)  # a tuning sweep continued: the trials its interrupted run left running settled
 
     def on_job_end(self, config: DictConfig, job_return: Any, **kwargs: Any) -> None:
         hc = HydraConfig.get()

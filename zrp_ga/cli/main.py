@@ -110,7 +110,9 @@ def cli() -> None:
         print(f"zrp-ga: error: {_hint(one_line(getattr(exc, 'error', exc)))}", file=sys.stderr)
         sys.exit(2)
     except KeyboardInterrupt:
-        print(f"\nzrp-ga: interrupted; {_continue_with()}", file=sys.stderr)
+        from zrp_ga.cli import study
+
+        print(f"\nzrp-ga: interrupted; {_continue_with(study.interrupted())}", file=sys.stderr)  # a tuning sweep's trials settled
         sys.exit(130)
     except BaseException:
         held.release()
@@ -242,11 +244,20 @@ def _few_collections() -> Iterator[None]:
         yield
 
 
-def _continue_with() -> str:
-    """How to continue the interrupted run or sweep, from what Hydra knows about it."""
+def _continue_with(tuning: tuple[Any, bool] | None = None) -> str:
+    """How to continue the interrupted run or sweep, from what Hydra knows about it; ``tuning``:
+    the study of an interrupted tuning sweep and whether it was settled
+    (:func:`zrp_ga.cli.study.interrupted`)."""
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
+    if tuning is not None:  # new trials ask for new settings: an interrupted trial's run is not continued
+        (study, settled), when = tuning, ""
+        if not settled:
+            when = " when the study is continued"
+        return (f"the finished trials are in the study in {study.sweep} (the unfinished ones marked failed{when}, their runs "
+                f"not continued): the same command with hydra.sweep.dir={study.sweep} adds hydra.sweeper.n_trials "
+                "new trials")  # fmt: skip
     hc = HydraConfig.get() if HydraConfig.initialized() else None
     if hc is not None and hc.mode == RunMode.MULTIRUN:
         sweep = hc.sweep.dir

@@ -307,6 +307,8 @@ def _notes(arms: Arms, tool: Any, tool_T: Array | None, probe_in_flange: Any, or
     measured_point = isinstance(tool, str) and tool == "calibration"
     if arms.tool is not None and probe_in_flange is None and not measured_point:
         notes.append(setups.split_note(arms, orient and arms.orientations))
+    if measured_point and orient and not arms.orientations and probe_in_flange is None:
+        notes.append(setups.point_tool_note())
     if not arms.orientations and (orient or not measured_point):
         at = np.zeros(3) if tool_T is None else tool_T[:3, 3]
         off = 0.0 if measured_point or arms.tool is None else float(np.linalg.norm(at - arms.tool[:3, 3]))

@@ -224,6 +224,15 @@ def orientation_note(arms: Arms, tool_offset_m: float) -> str:
             "6D probe) or compensate positions only (position_only, --position-only)")  # fmt: skip
 
 
+def point_tool_note() -> str:
+    """What orientation targets of the measured point leave open when the calibration measured
+    positions only: the point has no orientation of its own, so it takes the flange's."""
+    return ("tool orientation: the calibration measured positions only, so its measured point has no orientation of its "
+            "own and tool='calibration' (--tool calibration) takes the flange's; orientation targets of a probe turned in "
+            "its mount miss by that turn in full (the data do not hold it); give the probe's transform in the flange "
+            "(probe_in_flange, --probe-in-flange) or compensate positions only (position_only, --position-only)")  # fmt: skip
+
+
 def work_object_note(points_apart_m: float, reach_from_origin_m: float, noise_mm: float | None) -> str:
     """How much the errors of three measured points move targets in the work object: an error
     ``e`` (per coordinate) in O moves them by ``e``, in X and Y turns them by about ``sqrt 2 e /
