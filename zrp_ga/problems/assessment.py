@@ -71,6 +71,8 @@ def assess(task: Task, x: Array, val_rms_m: float) -> Assessment:
     if unc is not None:
         u.update(_uncertainty_entries(task, x, unc, val_rms_m))
         worse = bool(u["predicted_model_rms_mm"]["calibrated"] > u["predicted_model_rms_mm"]["nominal"])
+        u["across_joint_limits_mm"] = across = _across_limits(task, unc, cov)
+        notes += _beyond_note(across, u["predicted_model_rms_mm"]["nominal"])
     else:
         u["why"] = "the data leave no residual degrees of freedom to estimate the noise"
     out["uncertainty"] = u
@@ -157,6 +159,38 @@ def _uncertainty_entries(task: Task, x: Array, unc: Uncertainty, val_rms_m: floa
         entry["validation_rms_mm"] = {"predicted": predicted * 1e3, "measured": val_rms_m * 1e3,
                                       "measured_over_predicted": val_rms_m / predicted if predicted > 0 else float("nan")}  # fmt: skip
     return entry
+
+
+ACROSS_POSES, NARROW = 200, 0.05  # poses drawn across the joint limits; a joint moved over less than this share of its limits
+
+
+def _across_limits(task: Task, unc: Uncertainty, cov: Coverage) -> dict[str, Any]:
+    """The model's predicted position error (1-sigma radius, RMS, mm) at ``ACROSS_POSES`` poses
+    drawn uniformly within the arm's joint limits (a fixed draw), of the identified combinations
+    and of those left at nominal (their prior), and the joints the calibration poses moved over
+    less than ``NARROW`` of their limits: what the calibration says away from its own poses."""
+    limits = task.problem.nominal.joint_limits
+    q = np.random.default_rng(0).uniform(limits[:, 0], limits[:, 1], size=(ACROSS_POSES, len(limits)))
+    pred = unc.predict(q)
+    share = (cov.upper - cov.lower) / (limits[:, 1] - limits[:, 0])
+    return {"identified_rms": _rms(pred["position_m"]) * 1e3, "unidentified_rms": _rms(pred["position_unidentified_m"]) * 1e3,
+            "total_rms": _rms(pred["position_total_m"]) * 1e3, "poses": ACROSS_POSES,
+            "narrow_joints": [j + 1 for j in np.flatnonzero(share < NARROW).tolist()]}  # fmt: skip
+
+
+def _beyond_note(across: dict[str, Any], nominal_mm: float) -> list[str]:
+    """A warning when the model is predicted to be further off across the joint limits than the
+    nominal arm was measured to be at the calibration poses (its error less the noise): the
+    calibration then holds only within the region its poses cover."""
+    if not np.isfinite(across["total_rms"]) or across["total_rms"] <= nominal_mm:
+        return []
+    narrow = across["narrow_joints"]
+    moved = f"; joint{'s' * (len(narrow) > 1)} {', '.join(map(str, narrow))} barely moved in the calibration data" if narrow else ""
+    return [f"away from its calibration poses the model is predicted to be {across['total_rms']:.3g} mm off (RMS of the "
+            f"1-sigma error at {across['poses']} poses across the joint limits, {across['unidentified_rms']:.3g} mm of it from "
+            f"what the data could not identify), more than the nominal arm's {nominal_mm:.3g} mm at the calibration poses"
+            f"{moved}: use it within the joint ranges the calibration covers (coverage in summary.json; "
+            "Calibration.predict gives the error at any pose), or calibrate over the region the arm will work in"]  # fmt: skip
 
 
 def _rms(a: Array) -> float:
