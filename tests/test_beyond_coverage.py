@@ -65,3 +65,15 @@ def test_a_calibration_that_moves_every_joint_does_not_warn():
     across, nominal = s["uncertainty"]["across_joint_limits_mm"], s["uncertainty"]["predicted_model_rms_mm"]["nominal"]
     assert across["narrow_joints"] == [] and across["total_rms"] < 0.1 * nominal
     assert not [w for w in s["warnings"] if w.startswith("away from its calibration poses")]
+
+
+def test_a_perfect_arm_is_not_predicted_worse_than_itself_from_round_off():
+    """Data of the nominal arm itself: the nominal's model error is 0 and the fit's predicted one
+    round-off (about 1e-14 mm); no warning, no nominal arm returned for it."""
+    robot = _arm()
+    q = np.random.default_rng(2).uniform(-np.pi, np.pi, (40, 6))
+    _, p = kinematics.forward(robot, q)
+    deg, mm = np.degrees(q), 1e3 * p  # a tuple of arrays reads as degrees and millimetres
+    s = zrp_ga.calibrate(robot, (deg[:30], mm[:30]), validation=(deg[30:], mm[30:]), algorithm="lm", seed=1).summary
+    assert s["returned"] == "optimiser"
+    assert not [w for w in s["warnings"] if "worse" in w or "away from its calibration" in w], s["warnings"]

@@ -21,6 +21,7 @@ from zrp_ga.problems import Task, identify
 
 Array = NDArray[np.float64]
 SUBSPACE_MOVED_RAD = 0.05  # the identified directions at the result this far from those searched: a warning
+FLOOR_MM = 1e-6  # predicted model errors closer than a nanometre are the same (round-off: a perfect arm's 3e-14 mm against 0)
 
 
 @dataclasses.dataclass
@@ -70,7 +71,7 @@ def assess(task: Task, x: Array, val_rms_m: float) -> Assessment:
     u: dict[str, Any] = {"available": unc is not None}
     if unc is not None:
         u.update(_uncertainty_entries(task, x, unc, val_rms_m))
-        worse = bool(u["predicted_model_rms_mm"]["calibrated"] > u["predicted_model_rms_mm"]["nominal"])
+        worse = bool(u["predicted_model_rms_mm"]["calibrated"] > u["predicted_model_rms_mm"]["nominal"] + FLOOR_MM)
         u["across_joint_limits_mm"] = across = _across_limits(task, unc, cov)
         notes += _beyond_note(across, u["predicted_model_rms_mm"]["nominal"])
     else:
@@ -182,7 +183,7 @@ def _beyond_note(across: dict[str, Any], nominal_mm: float) -> list[str]:
     """A warning when the model is predicted to be further off across the joint limits than the
     nominal arm was measured to be at the calibration poses (its error less the noise): the
     calibration then holds only within the region its poses cover."""
-    if not np.isfinite(across["total_rms"]) or across["total_rms"] <= nominal_mm:
+    if not np.isfinite(across["total_rms"]) or across["total_rms"] <= nominal_mm + FLOOR_MM:
         return []
     narrow = across["narrow_joints"]
     moved = f"; joint{'s' * (len(narrow) > 1)} {', '.join(map(str, narrow))} barely moved in the calibration data" if narrow else ""
