@@ -166,3 +166,27 @@ def test_a_config_composed_without_the_app_finds_the_default_sweeper(tmp_path):
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.strip() == "hydra_plugins.zrp_ga_sweeper.sweeper.ZrpGaSweeper"
+
+
+def test_a_users_experiment_file_chooses_its_own_sweeper(tmp_path):
+    """An experiment in the user's config folder that chooses a sweeper gets it (hparams_search's
+    default, which chooses zrp_ga's, comes before experiment in the defaults list); the default
+    without one stays zrp_ga's."""
+    (tmp_path / "mine" / "experiment").mkdir(parents=True)
+    (tmp_path / "mine" / "experiment" / "mybasic.yaml").write_text(
+        "# @package _global_\ndefaults:\n  - override /hydra/sweeper: basic\nseed: 4\n")
+
+    def sweeper(*args: str) -> str:
+        proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "--config-dir", str(tmp_path / "mine"), *args, "--cfg", "hydra"],
+                              capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        return OmegaConf.create(proc.stdout).hydra.sweeper._target_.rsplit(".", 1)[1]
+
+    assert sweeper("experiment=mybasic") == "BasicSweeper"
+    assert sweeper("experiment=operator_grid") == "ZrpGaSweeper"
+
+
+def test_hparams_search_null_is_refused_naming_the_option_to_use(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "hparams_search=null"], capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1
+    assert "(hparams_search=null)" in proc.stderr and "hparams_search=none" in proc.stderr

@@ -16,8 +16,10 @@ key (enough for every worker to get a few; fewer when the key has no more, at th
 too many wait composed), a job without a key goes alone. The keys are noted, and the configs
 kept pickled, by the config loader as Hydra's sweeper checks the jobs (``_compose``), so that
 the jobs of a key far apart in the sweep (a seed sweep of simulated instances: ``seed`` varies
-fastest and each seed is an instance) are sent together, whole; without them (another config
-loader) the driver composes the jobs in their order ahead while the workers run. A
+fastest and each seed is an instance) are sent together, whole; without them (zrp_ga's sweeper,
+which composes a few jobs, or another config loader) the driver groups the jobs by the values of
+the swept keys that change the batch key (``_Dispatcher._by_overrides``: one composition per
+swept key) and composes them in that order ahead while the workers run. A
 worker holds one batch of jobs run together (two of other jobs: one running, one waiting).
 The driver collects the returns in job order and rewrites the manifest table now and then. A
 worker that dies (killed, out of memory) fails its unfinished jobs, which are recorded in the

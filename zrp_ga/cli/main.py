@@ -218,6 +218,11 @@ def _hint(message: str) -> str:
     if "hydra.mode changed during config composition" in message:
         return (f"{message} (a sweep's config, such as experiment=operator_grid or hparams_search=ga_optuna, "
                 "runs with -m: zrp-ga -m experiment=...)")  # fmt: skip
+    if "Config group override must be a string or a list. Got NoneType" in message:
+        nulls = [a.split("=", 1)[0] for a in sys.argv[1:] if a.endswith("=null") and "." not in a.split("=", 1)[0]]
+        named = f" ({', '.join(nulls)}=null)" if nulls else ""
+        return (f"{message}{named}: a config group takes one of its options, not null; no hyperparameter search is "
+                "hparams_search=none (the default), and ~GROUP removes a group's entry")  # fmt: skip
     return message
 
 

@@ -36,6 +36,7 @@ class Assessment:
     uncertainty: Uncertainty | None
     coverage: Coverage
     predicted_worse: bool
+    beyond: list[str] = dataclasses.field(default_factory=list)  # the warning about the model across the joint limits (for a returned model)
 
     def worse_note(self, then: str = "") -> list[str]:
         """The warning that the model is predicted worse than nominal (none when it is not),
@@ -68,17 +69,18 @@ def assess(task: Task, x: Array, val_rms_m: float) -> Assessment:
                          f"poses cover{beyond}: the validation is extrapolation and says little about the calibrated "
                          "region (validate within it, or calibrate over the region the arm will work in)")  # fmt: skip
     worse = False
+    beyond: list[str] = []
     u: dict[str, Any] = {"available": unc is not None}
     if unc is not None:
         u.update(_uncertainty_entries(task, x, unc, val_rms_m))
         worse = bool(u["predicted_model_rms_mm"]["calibrated"] > u["predicted_model_rms_mm"]["nominal"] + FLOOR_MM)
         u["across_joint_limits_mm"] = across = _across_limits(task, unc, cov)
-        notes += _beyond_note(across, u["predicted_model_rms_mm"]["nominal"])
+        beyond = _beyond_note(across, max(u["predicted_model_rms_mm"]["nominal"], u["noise_mm"]))
     else:
         u["why"] = "the data leave no residual degrees of freedom to estimate the noise"
     out["uncertainty"] = u
     notes += _outlier_notes(out["outliers"]) + _moved_note(out["identified"])
-    return Assessment(out, notes, unc, cov, worse)
+    return Assessment(out, notes, unc, cov, worse, beyond)
 
 
 def identified(task: Task, x: Array) -> dict[str, Any]:
@@ -181,8 +183,9 @@ def _across_limits(task: Task, unc: Uncertainty, cov: Coverage) -> dict[str, Any
 
 def _beyond_note(across: dict[str, Any], nominal_mm: float) -> list[str]:
     """A warning when the model is predicted to be further off across the joint limits than the
-    nominal arm was measured to be at the calibration poses (its error less the noise): the
-    calibration then holds only within the region its poses cover."""
+    nominal arm was measured to be at the calibration poses (its error less the noise; at least
+    the noise: a perfect arm's fit is not warned about its 0.01 mm against 0): the calibration
+    then holds only within the region its poses cover."""
     if not np.isfinite(across["total_rms"]) or across["total_rms"] <= nominal_mm + FLOOR_MM:
         return []
     narrow = across["narrow_joints"]

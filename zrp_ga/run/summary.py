@@ -90,6 +90,7 @@ def _compute(task: Task) -> dict[str, Any]:
 ROUND_OFF = directory.ROUND_OFF
 UNCERTAINTY, COVERAGE = "uncertainty.json", "coverage.json"
 FLOOR_M = 1e-9  # validation errors closer than a nanometre are the same (a perfect arm's fit: 2.6e-16 m against 2.3e-16)
+COST_FLOOR = 1e-12  # costs (m-like) closer than this are the same
 
 
 def floor(task: Task, key: str | None = None, cache: Cache | None = None, sweep: Path | None = None) -> dict[str, Any]:
@@ -129,8 +130,15 @@ def objective(cfg: Config, task: Task, written: Summary, key: str, cache: Cache,
 
 
 def worse_than_nominal(result: Result, nominal_cost: float) -> bool:
-    """The optimiser diverged or its best fits the calibration data worse than the nominal arm."""
-    return result.x is None or not np.isfinite(result.cost) or result.cost > nominal_cost
+    """The optimiser diverged or its best fits the calibration data worse than the nominal arm
+    (by more than round-off: :func:`fits_worse`)."""
+    return result.x is None or not np.isfinite(result.cost) or fits_worse(result.cost, nominal_cost)
+
+
+def fits_worse(cost: float, nominal_cost: float) -> bool:
+    """``cost`` above ``nominal_cost`` by more than round-off: relatively (1e-9) and absolutely
+    (``COST_FLOOR``; a perfect arm's fit ends at 5.7e-16 against the nominal's 3.7e-16)."""
+    return bool(cost > nominal_cost * (1.0 + 1e-9) + COST_FLOOR)
 
 
 def on_bounds(task: Task, x: np.ndarray, reported: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -163,7 +171,7 @@ def warnings(task: Task, result: Result, nominal_cost: float, val: dict[str, flo
     then = "; the nominal arm is returned instead" if returned == "nominal" else ""
     if result.x is None or not np.isfinite(result.cost):
         out.append(f"the optimiser diverged: its best cost is {result.cost}{then}")
-    elif result.cost > nominal_cost:
+    elif fits_worse(result.cost, nominal_cost):
         out.append(f"the calibrated model fits the calibration data worse than the nominal one "
                    f"(cost {result.cost:.6g} > {nominal_cost:.6g}){then}")  # fmt: skip
     if np.isfinite(val["found"]) and val["found"] > val["nominal"] + FLOOR_M * 1e3:  # mm
@@ -223,7 +231,8 @@ def judged(task: Task, result: Result) -> tuple[dict[str, Any], np.ndarray]:
         "validation_max_mm": {"nominal": float(before[1][0]) * 1e3, "calibrated": float(after[1][0]) * 1e3},
         "param_err": {"nominal": float(judge.param_error(zero)[0]), "calibrated": float(judge.param_error(x)[0])},
         "warnings": warnings(task, result, nominal_cost, {**val_rms, "found": float(at_found[0][0]) * 1e3}, returned, found,
-                             a.warnings + a.worse_note("; the nominal arm is returned instead" if returned == "nominal" else "")),
+                             a.warnings + a.worse_note("; the nominal arm is returned instead" if returned == "nominal" else "")
+                             + (a.beyond if returned == "optimiser" else [])),
         "best_genome": dict(zip(p.names, x.tolist())),
         **a.entries,
     }, x
