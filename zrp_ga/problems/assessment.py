@@ -69,18 +69,18 @@ def assess(task: Task, x: Array, val_rms_m: float) -> Assessment:
                          f"poses cover{beyond}: the validation is extrapolation and says little about the calibrated "
                          "region (validate within it, or calibrate over the region the arm will work in)")  # fmt: skip
     worse = False
-    beyond: list[str] = []
+    across_note: list[str] = []
     u: dict[str, Any] = {"available": unc is not None}
     if unc is not None:
         u.update(_uncertainty_entries(task, x, unc, val_rms_m))
         worse = bool(u["predicted_model_rms_mm"]["calibrated"] > u["predicted_model_rms_mm"]["nominal"] + FLOOR_MM)
         u["across_joint_limits_mm"] = across = _across_limits(task, unc, cov)
-        beyond = _beyond_note(across, max(u["predicted_model_rms_mm"]["nominal"], u["noise_mm"]))
+        across_note = _beyond_note(across, max(u["predicted_model_rms_mm"]["nominal"], u["noise_mm"]))
     else:
         u["why"] = "the data leave no residual degrees of freedom to estimate the noise"
     out["uncertainty"] = u
     notes += _outlier_notes(out["outliers"]) + _moved_note(out["identified"])
-    return Assessment(out, notes, unc, cov, worse, beyond)
+    return Assessment(out, notes, unc, cov, worse, across_note)
 
 
 def identified(task: Task, x: Array) -> dict[str, Any]:
