@@ -6,7 +6,7 @@ import pytest
 # stores them when it finds the plugins: hydra-core 1.3 does not find them in an editable install
 # (pip install -e, which the tests run from; zrp-ga registers them itself), and a test that composes
 # configs would otherwise depend on an earlier test having imported them.
-import hydra_plugins.zrp_ga_launcher.config  # noqa: F401
+import hydra_plugins.zrp_ga_launcher.config
 import hydra_plugins.zrp_ga_sweeper.sweeper  # noqa: F401
 
 
