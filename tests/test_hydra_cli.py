@@ -108,6 +108,7 @@ def test_an_experiment_sweeps_with_m_on_zrp_gas_launcher(tmp_path):
         assert out.returncode == 2 and "zrp-ga -m experiment=" in out.stderr.splitlines()[-1], out.stderr
 
 
+@pytest.mark.slow  # 17 s; test_a_tuning_study_stopped_settles_its_trials_and_continues continues a study too (slow)
 def test_a_tuning_study_continues_without_repeating_a_trial(tmp_path):
     """``zrp-ga -m hparams_search=ga_optuna`` twice on one sweep folder: the study in its
     ``optuna.db`` holds both runs' trials (3 + 3), each with its own settings, folder and seed;

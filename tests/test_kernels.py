@@ -199,6 +199,7 @@ def test_the_default_run_compiles_nothing_and_imports_no_numba(tmp_path):
 BOUNDS_CHECKED = ["tests/test_kernels.py", "tests/test_operators_shapes.py"]
 
 
+@pytest.mark.slow  # 10 s: the kernels compiled again with bounds checking
 def test_the_shape_tests_pass_with_bounds_checking_on():
     """The ``boundscheck`` tests (this module's and test_operators_shapes.py's: every genome size
     from 1 to 40 and subset size from 1 through every operator and the GA, every kernel at every

@@ -379,6 +379,7 @@ def test_spawned_workers_write_what_forked_ones_write(tmp_path, ours):
         pd.testing.assert_frame_equal(spawned[overrides], frame)
 
 
+@pytest.mark.slow  # 15 s of Hydra's own compositions
 def test_a_suite_sweep_composes_once_per_instance_not_per_job(hydra_loader):
     """``instance=...`` options are ``_global_`` (not separable): each is Hydra's composition
     once, and the jobs that share it take the other groups' subtrees as usual."""
