@@ -193,6 +193,7 @@ def test_bad_terms_are_one_line_exit_2_and_leave_nothing(case, tmp_path):
     test_bad_input_is_one_line_exit_2_and_leaves_nothing(case, tmp_path)
 
 # --- the size budget ---------------------------------------------------------------------------------
+@pytest.mark.slow  # 4-12 s: out of the default run for its time (pytest -m slow runs it)
 def test_memory_estimate_bounds_the_measured_peak(tmp_path, monkeypatch):
     """The estimate is at least what the run allocates (tracemalloc's peak while the problem is
     built, diagnosed and optimised), and not wildly more."""

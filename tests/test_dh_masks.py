@@ -133,6 +133,7 @@ def test_summary_reports_the_fixed_dh_parameters_change(tmp_path):
     assert np.array_equal(cal.robot.u0[3], read_robot(tmp_path / "puma.yaml").u0[3])
 
 
+@pytest.mark.slow  # 4-12 s: out of the default run for its time (pytest -m slow runs it)
 def test_bad_dh_names_are_refused(tmp_path):
     write_puma(tmp_path / "puma.yaml")
     proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", f"robot.file={tmp_path / 'puma.yaml'}", "problem.fixed=[dh_theta_9]",

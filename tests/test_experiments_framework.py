@@ -130,6 +130,7 @@ def test_interrupted_run_resumes_to_the_same_csv(tmp_path, monkeypatch):
     assert not (tmp_path / "ignored").exists()
 
 
+@pytest.mark.slow  # 4-12 s: out of the default run for its time (pytest -m slow runs it)
 def test_killed_process_resumes_to_the_same_csv(tmp_path):
     args = FAST + ["population.generations=1500", "checkpoint_every=25", "progress=false"]
     proc = subprocess.Popen([sys.executable, "-m", "zrp_ga.cli", *args, f"hydra.run.dir={tmp_path / 'cut'}"],

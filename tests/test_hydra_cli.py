@@ -66,6 +66,7 @@ def test_help_is_hydras_own_text(tmp_path, args):
         assert "crossover: blend, none, " in ours.stdout
 
 
+@pytest.mark.slow  # 4-12 s: out of the default run for its time (pytest -m slow runs it)
 def test_help_is_left_to_hydra_where_zrp_ga_cannot_print_it(tmp_path):
     """Hydra's own --help answers another flag (a user's --config-dir), a template wanting Hydra's
     parser ($FLAGS_HELP) and a config that does not compose (its one-line error, exit code 2)."""

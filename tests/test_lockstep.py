@@ -155,6 +155,7 @@ def test_streams_draw_each_runs_numbers_from_its_own_generator():
     random.seed(0)
 
 
+@pytest.mark.slow  # 4-12 s: out of the default run for its time (pytest -m slow runs it)
 def test_calibrate_over_many_seeds_gives_each_seeds_calibration(tmp_path):
     """``zrp_ga.calibrate(seed=[...])`` on measured data evolves the seeds together; each
     calibration is the one ``seed=s`` alone gives, and each run's files go to ``out/seed_S``."""

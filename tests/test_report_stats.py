@@ -33,6 +33,7 @@ def test_friedman_with_seeds_as_blocks_known_answer():
     assert pairs.loc[("A", "C"), "effect"] == 1.0  # A ends lower on every seed
 
 
+@pytest.mark.slow  # 4-12 s: out of the default run for its time (pytest -m slow runs it)
 def test_paired_tests_equal_scipy_on_random_data():
     rng = np.random.default_rng(3)
     data = {c: pd.Series(rng.normal(loc, 1.0, 12).round(1), index=range(12)) for c, loc in (("a", 0.0), ("b", 0.4), ("c", 1.0), ("d", 1.1))}

@@ -429,6 +429,7 @@ def test_a_job_of_a_batch_that_fails_fails_alone(tmp_path):
     assert pd.read_csv(sweep / "manifest.csv")["status"].tolist() == list(m["status"])
 
 
+@pytest.mark.slow  # 4-12 s: out of the default run for its time (pytest -m slow runs it)
 def test_a_sweep_mixing_ga_and_lm_jobs(tmp_path):
     """GA jobs on one instance run together, Levenberg-Marquardt jobs (no batch key) alone; every
     job ends as a single run of its config, with its own records."""
