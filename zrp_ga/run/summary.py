@@ -38,6 +38,7 @@ from zrp_ga.core.schema import Config, Cost, Objective
 from zrp_ga.io import records, robot_files
 from zrp_ga.model import error_model
 from zrp_ga.problems import Task
+from zrp_ga.problems.assessment import FLOOR_MM
 from zrp_ga.problems.protocol import SelfJudging
 from zrp_ga.run import directory
 from zrp_ga.run.shared import Cache
@@ -89,7 +90,7 @@ def _compute(task: Task) -> dict[str, Any]:
 
 ROUND_OFF = directory.ROUND_OFF
 UNCERTAINTY, COVERAGE = "uncertainty.json", "coverage.json"
-FLOOR_M = 1e-9  # validation errors closer than a nanometre are the same (a perfect arm's fit: 2.6e-16 m against 2.3e-16)
+FLOOR_M = FLOOR_MM * 1e-3  # validation errors closer than the assessment's nanometre are the same (a perfect arm's fit: 2.6e-16 m against 2.3e-16)
 COST_FLOOR = 1e-12  # costs (m-like) closer than this are the same
 
 
