@@ -169,6 +169,7 @@ def test_sweep_with_a_failing_job_keeps_the_others_and_names_the_failure(tmp_pat
     assert (sweep / "manifest.csv").exists()
 
 
+@pytest.mark.slow  # 10-30 s: kept out of the default run (under ten minutes); pytest -m slow
 def test_joblib_sweep_runs_jobs_in_parallel_processes(tmp_path):
     pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
     sweep = tmp_path / "sweep"

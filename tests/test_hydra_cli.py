@@ -90,6 +90,7 @@ SMALL_GRID = ["population.max_evals=100", "hydra.sweeper.params.crossover='blend
               "hydra.sweeper.params.inversion=none", "hydra.sweeper.params.rotation=none", "hydra.sweeper.params.seed='range(2)'"]  # fmt: skip
 
 
+@pytest.mark.slow  # 10-30 s: kept out of the default run (under ten minutes); pytest -m slow
 def test_an_experiment_sweeps_with_m_on_zrp_gas_launcher(tmp_path):
     """``zrp-ga -m experiment=operator_grid`` (the grid made small): every job done, on zrp_ga's
     launcher (the default); the same without ``-m``: run as a sweep (hydra-core 1.3, from the
@@ -204,6 +205,7 @@ def test_a_tuning_study_stopped_settles_its_trials_and_continues(tmp_path, stop)
     assert len({tuple(sorted(t.params.items())) for t in again}) == len(again)  # no settings proposed twice
 
 
+@pytest.mark.slow  # 10-30 s: kept out of the default run (under ten minutes); pytest -m slow
 def test_a_run_stopped_and_resumed_from_the_command_line(tmp_path):
     """A GA run stopped by SIGTERM (as a cluster's time limit stops it), then ``zrp-ga
     resume=DIR``: the run ends with its whole convergence.csv."""

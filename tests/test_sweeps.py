@@ -229,6 +229,7 @@ def test_warm_up_builds_the_base_instance_and_writes_nothing(tmp_path, monkeypat
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.slow  # 10-30 s: kept out of the default run (under ten minutes); pytest -m slow
 def test_a_sweep_run_again_keeps_its_finished_jobs_and_refuses_another_config(tmp_path, ours):
     sweep = tmp_path / "sweep"
     shutil.copytree(ours, sweep)
@@ -322,6 +323,7 @@ def _kill_and_continue(tmp_path: Path, whole: Path, sig: int, seed: int) -> None
     _check_same_as(sweep, whole)
 
 
+@pytest.mark.slow  # 10-30 s: kept out of the default run (under ten minutes); pytest -m slow
 def test_a_killed_sweep_started_again_ends_as_an_uninterrupted_one(tmp_path, uninterrupted):
     _kill_and_continue(tmp_path, uninterrupted, signal.SIGKILL, seed=1)
 
@@ -494,6 +496,7 @@ def test_the_driver_groups_jobs_by_batch_key(hydra_loader, tmp_path):
     assert _workers.batch_size(144, 2) == 24 and _workers.batch_size(10, 2) == 8 and _workers.batch_size(10**5, 2) == _workers.MAX_BATCH
 
 
+@pytest.mark.slow  # 10-30 s: kept out of the default run (under ten minutes); pytest -m slow
 def test_the_driver_sends_whole_batch_keys_of_a_big_sweep(hydra_loader, tmp_path, monkeypatch):
     """A sweep whose jobs of one batch key lie far apart (``seed`` varying fastest: one problem
     instance per seed) and more jobs than the driver composes ahead: the keys the loader noted

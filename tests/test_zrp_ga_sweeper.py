@@ -100,6 +100,7 @@ def _sweep(where: Path, *args: str) -> subprocess.CompletedProcess:
                            f"hydra.sweep.dir={where}"], capture_output=True, text=True, cwd=where.parent)  # fmt: skip
 
 
+@pytest.mark.slow  # 10-30 s: kept out of the default run (under ten minutes); pytest -m slow
 def test_the_sweepers_jobs_write_what_the_basic_sweepers_write(tmp_path):
     ours, basic = _sweep(tmp_path / "ours"), _sweep(tmp_path / "basic", "hydra/sweeper=basic")
     assert ours.returncode == 0 and basic.returncode == 0, ours.stderr[-2000:] + basic.stderr[-2000:]
