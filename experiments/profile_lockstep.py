@@ -3,14 +3,15 @@ profiled, and two grids compared run by run (issue 32, item 3).
 
 - ``--grid DIR``: ``zrp-ga -m experiment=operator_grid hydra/launcher=local`` into ``DIR``; its wall
   and CPU seconds (all processes) and the load average before and after. ``--code REV``: with the
-  code of git revision ``REV`` (a copy of its tree on ``PYTHONPATH``, as ``bench_sweep.py --before``).
+  code of git revision ``REV`` (a copy of its tree on ``PYTHONPATH``, as ``bench_sweep.py --before``;
+  or a folder holding such a copy: its kernels compiled by an earlier run, not again).
 - ``--profile``: one seed's 48 grid runs evolved together in this process (``outputs=study``, a
   sweep job's files, into a temporary folder), once untimed (kernels loaded, modules imported),
   then under cProfile: milliseconds per run by part (the generations and within them the kernel,
   the unpacking of parameter arrays, operators, selection, survival; each generation's rows and
   statistics; the end of the run) and the functions with most own time.
 - ``--compare A B``: every run of grid ``A`` against the same job's run of grid ``B``:
-  ``best_params.csv`` byte for byte, ``convergence.csv`` line for line without its wall-clock
+  ``best_params.csv`` and ``initial_population.csv`` byte for byte, ``convergence.csv`` line for line without its wall-clock
   columns (every other cell's text equal), ``summary.json`` equal but for its timing fields
   (``wall_s``, ``versions``); exit code 1 if any differs.
 
@@ -80,8 +81,8 @@ def tree(rev: str, where: Path) -> Path:
 
 def grid(out: Path, rev: str | None) -> dict:
     env = dict(os.environ)
-    if rev:
-        env["PYTHONPATH"] = str(tree(rev, Path(tempfile.mkdtemp(prefix="zrp_ga_tree_"))))
+    if rev:  # a folder: a tree extracted before (its kernels compiled and cached by an earlier run)
+        env["PYTHONPATH"] = rev if Path(rev).is_dir() else str(tree(rev, Path(tempfile.mkdtemp(prefix="zrp_ga_tree_"))))
     before, load_before = resource.getrusage(resource.RUSAGE_CHILDREN), load()
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "-m", *GRID, "hydra/launcher=local", f"hydra.sweep.dir={out}"],
@@ -198,9 +199,7 @@ def _strip(value: object) -> object:
 
 def run_differences(a: Path, b: Path) -> list[str]:
     """What differs between the runs in ``a`` and ``b`` ([] when nothing does)."""
-    out = []
-    if (a / "best_params.csv").read_bytes() != (b / "best_params.csv").read_bytes():
-        out.append("best_params.csv")
+    out = [name for name in ("best_params.csv", "initial_population.csv") if (a / name).read_bytes() != (b / name).read_bytes()]
     if _convergence(a / "convergence.csv") != _convergence(b / "convergence.csv"):
         out.append("convergence.csv")
     sa, sb = (json.loads((d / "summary.json").read_text()) for d in (a, b))
@@ -234,7 +233,7 @@ def compare(a: Path, b: Path) -> int:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--grid", type=Path, metavar="DIR", help="run the 144-run grid into DIR, timed")
-    parser.add_argument("--code", metavar="REV", help="with --grid: the code of git revision REV")
+    parser.add_argument("--code", metavar="REV", help="with --grid: the code of git revision REV (or in folder REV)")
     parser.add_argument("--profile", action="store_true", help="profile one seed's 48 runs evolved together")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--repeats", type=int, default=3, help="rounds timed without the profiler")
