@@ -245,17 +245,23 @@ def _apply(runs: Sequence[GA], alias: str, rows: NDArray[np.intp], owner: NDArra
     random numbers from its own generator (:class:`zrp_ga.operators.base.Streams`)."""
     if not len(rows):
         return
-    present = np.unique(owner)
-    for group in _groups(runs, alias, present.tolist()):
-        sel = slice(None) if len(group) == len(present) else np.isin(owner, group)
+    per_run = np.bincount(owner, minlength=len(runs))
+    present = np.flatnonzero(per_run)
+    groups = _groups(runs, alias, present.tolist())
+    for group in groups:
+        if len(groups) == 1:
+            sel: slice | NDArray[np.bool_] = slice(None)
+        else:
+            member = np.zeros(len(runs), dtype=bool)
+            member[group] = True
+            sel = member[owner]
         index = [rows[sel]] if partner is None else [rows[sel], partner[sel]]
         genes = [off[ix] for ix in index]  # copies; the operators change them in place
         if len(group) == 1:
             getattr(runs[group[0]].toolbox, alias)(*genes)
         else:
             fn, params, _ = runs[group[0]].ops[alias]
-            counts = np.bincount(owner[sel], minlength=len(runs))[group]
-            fn(*genes, rng=Streams([runs[i].rng for i in group], counts), **params)
+            fn(*genes, rng=Streams([runs[i].rng for i in group], per_run[group].tolist()), **params)
         for ix, g in zip(index, genes):
             off[ix] = g
 

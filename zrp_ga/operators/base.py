@@ -18,6 +18,7 @@ exactly those it would have alone. An operator that draws only through :func:`dr
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, TypeVar, overload
 
@@ -42,9 +43,9 @@ class Streams:
 
     def __init__(self, generators: Sequence[np.random.Generator], counts: Iterable[int]):
         self.generators, self.counts = list(generators), [int(c) for c in counts]
-        ends = np.cumsum(self.counts)
-        self.slices = [slice(int(e - c), int(e)) for e, c in zip(ends, self.counts)]
-        self.total = int(ends[-1]) if len(ends) else 0
+        ends = list(itertools.accumulate(self.counts))
+        self.slices = [slice(e - c, e) for e, c in zip(ends, self.counts)]
+        self.total = ends[-1] if ends else 0
 
 
 def parts(rng: np.random.Generator | Streams, n: int) -> list[tuple[np.random.Generator, slice]]:

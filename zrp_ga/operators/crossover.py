@@ -74,8 +74,12 @@ def sbx(
     A, B = rows(ind1), rows(ind2)
     x1, x2 = np.minimum(A, B), np.maximum(A, B)
     active = (_uniform(rng, A.shape) < indpb) & (x2 - x1 > 1e-14)
-    diff = np.where(active, x2 - x1, 1.0)
     u = _uniform(rng, A.shape)
+    flip = _uniform(rng, A.shape) <= 0.5
+    # the active genes only (element by element the same numbers as over the whole batch)
+    r, c = np.nonzero(active)
+    a1, a2, diff, u = x1[r, c], x2[r, c], (x2 - x1)[r, c], u[r, c]
+    lo, hi = np.broadcast_to(low, A.shape)[r, c], np.broadcast_to(up, A.shape)[r, c]
     power = 1.0 / (eta + 1.0)
 
     def beta_q(beta: Array) -> Array:
@@ -83,10 +87,10 @@ def sbx(
         return np.where(u <= 1.0 / alpha, (u * alpha) ** power, (1.0 / (2.0 - u * alpha)) ** power)
 
     with np.errstate(all="ignore"):
-        c1 = 0.5 * (x1 + x2 - beta_q(1.0 + 2.0 * (x1 - low) / diff) * diff)
-        c2 = 0.5 * (x1 + x2 + beta_q(1.0 + 2.0 * (up - x2) / diff) * diff)
-    c1, c2 = np.clip(c1, low, up), np.clip(c2, low, up)
-    flip = _uniform(rng, A.shape) <= 0.5
-    A[:] = np.where(active, np.where(flip, c2, c1), A)
-    B[:] = np.where(active, np.where(flip, c1, c2), B)
+        c1 = 0.5 * (a1 + a2 - beta_q(1.0 + 2.0 * (a1 - lo) / diff) * diff)
+        c2 = 0.5 * (a1 + a2 + beta_q(1.0 + 2.0 * (hi - a2) / diff) * diff)
+    c1, c2 = np.clip(c1, lo, hi), np.clip(c2, lo, hi)
+    flip = flip[r, c]
+    A[r, c] = np.where(flip, c2, c1)
+    B[r, c] = np.where(flip, c1, c2)
     return ind1, ind2

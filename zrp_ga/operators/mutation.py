@@ -32,17 +32,20 @@ def polynomial(
     """Deb's bounded polynomial mutation (the algorithm of DEAP's ``mutPolynomialBounded``)."""
     A = rows(ind)
     mask = _uniform(rng, A.shape) < indpb
-    x = np.clip(A, low, up)
-    width = up - low
-    d1, d2 = (x - low) / width, (up - x) / width
     u = _uniform(rng, A.shape)
+    # the mutated genes only (element by element the same numbers as over the whole batch)
+    r, c = np.nonzero(mask)
+    lo, hi, u = np.broadcast_to(low, A.shape)[r, c], np.broadcast_to(up, A.shape)[r, c], u[r, c]
+    x = np.clip(A[r, c], lo, hi)
+    width = hi - lo
+    d1, d2 = (x - lo) / width, (hi - x) / width
     power = 1.0 / (eta + 1.0)
     lower_side = u < 0.5
     with np.errstate(all="ignore"):
         v1 = 2.0 * u + (1.0 - 2.0 * u) * (1.0 - d1) ** (eta + 1.0)
         v2 = 2.0 * (1.0 - u) + 2.0 * (u - 0.5) * (1.0 - d2) ** (eta + 1.0)
         dq = np.where(lower_side, v1**power - 1.0, 1.0 - v2**power)
-    A[:] = np.where(mask, np.clip(x + dq * width, low, up), A)
+    A[r, c] = np.clip(x + dq * width, lo, hi)
     return (ind,)
 
 

@@ -8,7 +8,9 @@ predicted to be worse than the nominal arm over its own coverage.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import weakref
 from typing import Any
 
 import numpy as np
@@ -50,24 +52,15 @@ class Assessment:
 
 def assess(task: Task, x: Array, val_rms_m: float) -> Assessment:
     """The assessment of the calibrated genome ``x`` (the problem's genome) whose measured
-    validation RMS is ``val_rms_m`` (NaN: no validation poses)."""
+    validation RMS is ``val_rms_m`` (NaN: no validation poses). What does not depend on ``x``
+    is computed once per problem instance (:func:`_fixed`: the runs of a sweep's batch share it)."""
     p, setup = task.problem, task.setup
     unc = identify.uncertainty(p, x, setup)
-    cov = Coverage(p.data.q)
-    out: dict[str, Any] = {"identified": identified(task, x), "outliers": outliers(task)}
-    notes: list[str] = []
-    out["coverage"] = {"joint_ranges": np.column_stack([cov.lower, cov.upper]).tolist(), "gap": cov.gap}
-    val = task.judge.validation
-    if val is not None:
-        where = cov.assess(val.q)
-        out["coverage"]["validation"] = where.summary()
-        out["coverage"]["validation_is_extrapolation"] = bool(where.share_outside > MOST)
-        if where.share_outside > MOST:
-            joints = [str(j + 1) for j, s in enumerate(np.mean(where.beyond, axis=0)) if s > MOST]
-            beyond = f" (joint{'s' * (len(joints) > 1)} {', '.join(joints)} beyond the calibrated range)" if joints else ""
-            notes.append(f"{where.share_outside:.0%} of the validation poses lie outside the joint-space region the calibration "
-                         f"poses cover{beyond}: the validation is extrapolation and says little about the calibrated "
-                         "region (validate within it, or calibrate over the region the arm will work in)")  # fmt: skip
+    fixed = _fixed(task)
+    cov = fixed.coverage
+    out: dict[str, Any] = {"identified": identified(task, x), "outliers": copy.deepcopy(fixed.outliers),
+                           "coverage": copy.deepcopy(fixed.coverage_entry)}  # fmt: skip
+    notes: list[str] = list(fixed.coverage_notes)
     worse = False
     across_note: list[str] = []
     u: dict[str, Any] = {"available": unc is not None}
@@ -83,10 +76,74 @@ def assess(task: Task, x: Array, val_rms_m: float) -> Assessment:
     return Assessment(out, notes, unc, cov, worse, across_note)
 
 
+@dataclasses.dataclass
+class _Fixed:
+    """What the assessment of any genome of one problem instance shares: the coverage and its
+    entry and notes, the outliers, the identified entry but for the result's own part, the
+    subspace seen at the first fit, the nominal arm's errors and the poses across the limits."""
+
+    coverage: Coverage
+    coverage_entry: dict[str, Any]
+    coverage_notes: list[str]
+    outliers: dict[str, Any]
+    identified: dict[str, Any]
+    first_fit_seen: Any  # subspace.Subspace | None (no set-up with a subspace: unused)
+    nominal_ms: float  # the nominal arm's mean squared position error at the calibration poses, m^2
+    across_q: Array
+    across_share: Array
+
+
+_FIXED: dict[int, tuple[weakref.ref[Task], tuple[int, ...], _Fixed]] = {}
+
+
+def _fixed(task: Task) -> _Fixed:
+    """:class:`_Fixed` of ``task``, computed at its first assessment (kept while the task lives
+    and its problem, data, judge and set-up are the same objects)."""
+    p = task.problem
+    key = (id(p), id(p.data), id(task.judge), id(task.judge.validation), id(task.setup))
+    held = _FIXED.get(id(task))
+    if held is not None and held[0]() is task and held[1] == key:
+        return held[2]
+    cov = Coverage(p.data.q)
+    entry: dict[str, Any] = {"joint_ranges": np.column_stack([cov.lower, cov.upper]).tolist(), "gap": cov.gap}
+    notes: list[str] = []
+    val = task.judge.validation
+    if val is not None:
+        where = cov.assess(val.q)
+        entry["validation"] = where.summary()
+        entry["validation_is_extrapolation"] = bool(where.share_outside > MOST)
+        if where.share_outside > MOST:
+            joints = [str(j + 1) for j, s in enumerate(np.mean(where.beyond, axis=0)) if s > MOST]
+            beyond = f" (joint{'s' * (len(joints) > 1)} {', '.join(joints)} beyond the calibrated range)" if joints else ""
+            notes.append(f"{where.share_outside:.0%} of the validation poses lie outside the joint-space region the calibration "
+                         f"poses cover{beyond}: the validation is extrapolation and says little about the calibrated "
+                         "region (validate within it, or calibrate over the region the arm will work in)")  # fmt: skip
+    setup = task.setup
+    seen = _seen(task, setup.x) if setup is not None and setup.subspace is not None else None
+    nominal_err = metrics.position_errors(p.layout, p.nominal, np.zeros(p.layout.size), p.data)
+    limits = p.nominal.joint_limits
+    across_q = np.random.default_rng(0).uniform(limits[:, 0], limits[:, 1], size=(ACROSS_POSES, len(limits)))
+    share = (cov.upper - cov.lower) / (limits[:, 1] - limits[:, 0])
+    fixed = _Fixed(cov, entry, notes, outliers(task), _identified(task), seen, float(np.mean(nominal_err**2)), across_q, share)
+    for k in [k for k, (ref, _, _) in _FIXED.items() if ref() is None]:  # instances gone
+        del _FIXED[k]
+    _FIXED[id(task)] = (weakref.ref(task), key, fixed)
+    return fixed
+
+
 def identified(task: Task, x: Array) -> dict[str, Any]:
     """What the data identify (``summary.json``'s ``identified``): the genome's kind and size,
     the rule, the dropped combinations in words, the noise, and the identified directions
     computed again at the result (rank and largest angle to those searched)."""
+    fixed = _fixed(task)
+    entry = copy.deepcopy(fixed.identified)
+    if task.setup is not None and task.setup.subspace is not None:
+        entry["at_result"] = _at_result(task, x, fixed.first_fit_seen)
+    return entry
+
+
+def _identified(task: Task) -> dict[str, Any]:
+    """:func:`identified` but for the result's own part (``at_result``)."""
     setup = task.setup
     if setup is None:
         return {"subspace": "full", "genes": task.problem.layout.size}
@@ -104,27 +161,31 @@ def identified(task: Task, x: Array) -> dict[str, Any]:
                  dropped=len(s.singular_values) - s.rank,
                  dropped_combinations=subspace.describe(s, setup.layout.names, arm, U),
                  standard_errors_expected=None if s.standard_errors is None else s.standard_errors[: s.rank].round(4).tolist())  # fmt: skip
-    entry["at_result"] = _at_result(task, x)
     return entry
 
 
-def _at_result(task: Task, x: Array) -> dict[str, Any]:
-    """Rule 1 (the directions the poses see at all) applied again at the result ``x`` and at
-    the first fit's point, where the genome was chosen: their numbers and the largest principal
-    angle (rad) between them. (Directions near the noise threshold, rule 2, come and go with
-    any refit; these do not unless the fit moved the arm where other combinations are seen.)"""
+def _seen(task: Task, at: Array) -> subspace.Subspace | None:
+    """Rule 1 (the directions the poses see at all) at the set-up's point ``at``; None where
+    the poses see none."""
     setup = task.setup
-    assert setup is not None and setup.problem is not None  # called by identified() on a task with a set-up
-    base, n = setup.problem, task.problem.nominal.n
+    assert setup is not None and setup.problem is not None  # called on a task with a set-up
+    n = task.problem.nominal.n
+    J = identify.plain(setup.problem, "jacobian", at)
+    try:
+        return subspace.identify(J[:-n], J[-n:], setup.prior, None)
+    except ValueError:
+        return None
 
-    def seen(at: Array) -> subspace.Subspace | None:
-        J = identify.plain(base, "jacobian", at)
-        try:
-            return subspace.identify(J[:-n], J[-n:], setup.prior, None)
-        except ValueError:
-            return None
 
-    now, then = seen(setup.layout.restrict(task.problem.layout.expand(x))), seen(setup.x)
+def _at_result(task: Task, x: Array, then: subspace.Subspace | None) -> dict[str, Any]:
+    """Rule 1 (the directions the poses see at all) applied again at the result ``x`` and at
+    the first fit's point, where the genome was chosen (``then``, :func:`_seen` there): their
+    numbers and the largest principal angle (rad) between them. (Directions near the noise
+    threshold, rule 2, come and go with any refit; these do not unless the fit moved the arm
+    where other combinations are seen.)"""
+    setup = task.setup
+    assert setup is not None  # called by identified() on a task with a set-up
+    now = _seen(task, setup.layout.restrict(task.problem.layout.expand(x)))
     if now is None or then is None:
         return {"rank": 0 if now is None else now.rank, "first_fit_rank": 0 if then is None else then.rank, "angle_rad": float(np.pi / 2)}
     return {"rank": now.rank, "first_fit_rank": then.rank, "angle_rad": subspace.principal_angle(now.basis, then.basis)}
@@ -147,8 +208,7 @@ def _uncertainty_entries(task: Task, x: Array, unc: Uncertainty, val_rms_m: floa
     se = np.sqrt(np.sum(L**2, axis=1))
     data = p.data
     model = unc.predicted_rms_m(data.q, data.tools, noise=False)
-    nominal_err = metrics.position_errors(p.layout, p.nominal, np.zeros(p.layout.size), data)
-    nominal_model = np.sqrt(max(float(np.mean(nominal_err**2)) - 3 * unc.noise_m**2, 0.0))
+    nominal_model = np.sqrt(max(_fixed(task).nominal_ms - 3 * unc.noise_m**2, 0.0))
     pred_cal = unc.predict(data.q[data.tools == 0])
     entry = {"noise_mm": unc.noise_m * 1e3, "noise_source": unc.source,
              "standard_errors": dict(zip(p.names, se.tolist())),
@@ -172,10 +232,9 @@ def _across_limits(task: Task, unc: Uncertainty, cov: Coverage) -> dict[str, Any
     drawn uniformly within the arm's joint limits (a fixed draw), of the identified combinations
     and of those left at nominal (their prior), and the joints the calibration poses moved over
     less than ``NARROW`` of their limits: what the calibration says away from its own poses."""
-    limits = task.problem.nominal.joint_limits
-    q = np.random.default_rng(0).uniform(limits[:, 0], limits[:, 1], size=(ACROSS_POSES, len(limits)))
-    pred = unc.predict(q)
-    share = (cov.upper - cov.lower) / (limits[:, 1] - limits[:, 0])
+    fixed = _fixed(task)
+    pred = unc.predict(fixed.across_q)
+    share = fixed.across_share
     return {"identified_rms": _rms(pred["position_m"]) * 1e3, "unidentified_rms": _rms(pred["position_unidentified_m"]) * 1e3,
             "total_rms": _rms(pred["position_total_m"]) * 1e3, "poses": ACROSS_POSES,
             "narrow_joints": [j + 1 for j in np.flatnonzero(share < NARROW).tolist()]}  # fmt: skip

@@ -153,7 +153,7 @@ class ConvergenceLog(Callback):
                 self._writer.writerow({k: repr(float(v)) if isinstance(v, (float, np.floating)) else v for k, v in row.items()})
                 self._file.flush()
         else:  # the same line csv writes for numbers (nothing to quote), joined directly
-            self._buffer.write(",".join(_cell(row.get(k, "")) for k in COLUMNS) + "\r\n")
+            self._buffer.write(_line(row))
 
     def flush(self) -> None:
         """Write the rows held in memory."""
@@ -191,7 +191,17 @@ def write_rows(path: str | Path, rows: Sequence[Row]) -> None:
     the lines :class:`ConvergenceLog` writes as the run goes (a calibration saved after the fact)."""
     with open(path, "w", newline="") as f:
         f.write(",".join(COLUMNS) + "\r\n")
-        f.writelines(",".join(_cell(row.get(k, "")) for k in COLUMNS) + "\r\n" for row in rows)
+        f.writelines(_line(row) for row in rows)
+
+
+def _line(row: Row) -> str:
+    """A row's line of ``convergence.csv`` (:func:`_cell` of each column's value, "" where it
+    has none), with its line end: Python's floats and ints, most of a row, written directly."""
+    return ",".join([repr(v) if type(v) is float else str(v) if type(v) is int else _cell(v)
+                     for v in map(row.get, COLUMNS, _BLANK)]) + "\r\n"  # fmt: skip
+
+
+_BLANK = [""] * len(COLUMNS)
 
 
 def _cell(v: object) -> str:
