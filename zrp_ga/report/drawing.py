@@ -132,7 +132,13 @@ def _each(work: Callable[[dict], str], specs: list[dict], meanwhile: Callable[[]
         if meanwhile is not None:
             meanwhile()
         return [work(spec) for spec in specs]
+    import gc
+
     _WORK[:] = [functools.partial(work, spec) for spec in specs]
+    # What exists now (the runs, the tables) lives until the figures are drawn: the collector
+    # leaves it alone, so that neither this process nor a child walks it again (nor copies a
+    # child's inherited pages by touching them).
+    gc.freeze()
     pool = multiprocessing.get_context("fork").Pool(min(cores, len(specs)), initializer=_plain_signals)
     try:
         drawn = pool.map_async(_one, range(len(specs)), chunksize=1)
@@ -152,6 +158,7 @@ def _each(work: Callable[[dict], str], specs: list[dict], meanwhile: Callable[[]
         return figures
     finally:
         _WORK.clear()
+        gc.unfreeze()
 
 
 def _plain_signals() -> None:
