@@ -92,12 +92,24 @@ def draw(runs: list[Run], t: dict, stage: Path, formats: tuple[str, ...], rule: 
     specs = [s for s in (_convergence(runs, t, rule, shown, order), *_ecdf(runs, t, rule, shown, order), _evaluations(t, shown),
                          _main_effects(t), _interactions(t), _ranks(t), _validation(t, shown, order), _fig2(runs, t, rule, order))
              if s is not None]  # fmt: skip
+    _backends(formats + (("svg",) if page else ()))
     out = []
     for spec, svg in zip(specs, _each(functools.partial(_render, stage, formats, style, page), specs, meanwhile)):
         reuse = page and spec["name"] in WIDE and style == "paper"
         out.append(dict(name=spec["name"], title=spec["title"], caption=spec["caption"], alt=spec["alt"], svg=svg,
                         scale=1.5 if reuse else 4 / 3))  # fmt: skip
     return out, shown
+
+
+def _backends(formats: tuple[str, ...]) -> None:
+    """The modules that write ``formats`` imported here, once, rather than by each drawing process."""
+    from matplotlib.backend_bases import get_registered_canvas_class
+
+    for ext in dict.fromkeys(formats):
+        try:
+            get_registered_canvas_class(ext)
+        except (ImportError, ValueError):  # savefig says what is wrong, where it is called
+            pass
 
 
 def _render(stage: Path, formats: tuple[str, ...], style: str, page: bool, spec: dict) -> str:
