@@ -133,3 +133,19 @@ def test_ecdf_steps_weigh_each_instance_and_level_the_same():
         np.testing.assert_array_equal(g["evaluations"].to_numpy(), want_x)
         np.testing.assert_allclose(g["fraction"].to_numpy(), want_y, rtol=1e-13)
     assert got.loc[got["configuration"] == "c4", "fraction"].tolist() == [0.0]  # never hit: the starting point alone
+
+
+def test_drawing_processes_leave_the_collector_as_they_found_it(monkeypatch):
+    """While the figures are drawn the collector leaves the existing objects alone (frozen, so
+    that no process walks them again); afterwards they are collectable again."""
+    import gc
+    import os
+
+    from zrp_ga.report import drawing
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    seen = []
+    got = drawing._each(lambda spec: f"{spec['name']} {gc.get_freeze_count() > 0}", [{"name": "a"}, {"name": "b"}],
+                        meanwhile=lambda: seen.append(gc.get_freeze_count() > 0))  # fmt: skip
+    assert got == ["a True", "b True"] and seen == [True]  # frozen in the drawing processes and here meanwhile
+    assert gc.get_freeze_count() == 0

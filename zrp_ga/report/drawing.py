@@ -150,6 +150,7 @@ def _each(work: Callable[[dict], str], specs: list[dict], meanwhile: Callable[[]
     # What exists now (the runs, the tables) lives until the figures are drawn: the collector
     # leaves it alone, so that neither this process nor a child walks it again (nor copies a
     # child's inherited pages by touching them).
+    frozen = gc.get_freeze_count()
     gc.freeze()
     pool = multiprocessing.get_context("fork").Pool(min(cores, len(specs)), initializer=_plain_signals)
     try:
@@ -170,7 +171,8 @@ def _each(work: Callable[[dict], str], specs: list[dict], meanwhile: Callable[[]
         return figures
     finally:
         _WORK.clear()
-        gc.unfreeze()
+        if not frozen:  # a caller's own frozen objects stay frozen
+            gc.unfreeze()
 
 
 def _plain_signals() -> None:

@@ -40,6 +40,8 @@ def _matches(run: Run, wanted: dict[str, str]) -> bool:
     setting of its algorithm or any key of its resolved config)."""
     from zrp_ga.report.labels import flatten, settings
 
+    if not wanted:
+        return True
     known = {**flatten(run.summary.get("config") or {}), **settings(run), **run.choices, **run.overrides}
     return all(known.get(k) == v for k, v in wanted.items())
 
