@@ -250,8 +250,8 @@ def _ecdf(runs: list[Run], t: dict, rule: TargetRule, shown: list[str], order: l
     per = {i: targets.ecdf(h, start) for i, h in hits.groupby("instance", sort=True)}
     ends = hits.groupby("configuration")["nevals"].max().to_dict()
     ecdf_shown = [c for c in shown if c in set(hits["configuration"])]
-    ref_f = floors.set_index("instance")["reference"]
-    t["ecdf_targets"] = pd.DataFrame([dict(instance=i, k=j, target=v, over_ref=v / float(ref_f.loc[i])) for i, arr in tg.items()
+    ref_f = dict(zip(floors["instance"], floors["reference"].astype(float)))
+    t["ecdf_targets"] = pd.DataFrame([dict(instance=i, k=j, target=v, over_ref=v / ref_f[i]) for i, arr in tg.items()
                                       for j, v in enumerate(arr)])  # fmt: skip
     lm, names = _lm(t), _names(t)
     reference = {}

@@ -141,7 +141,8 @@ def _write_tables(t: dict, stage: Path) -> None:
     from zrp_ga.report import conclusions
 
     found = conclusions.records(t)
-    lines = ",\n".join(json.dumps(c, separators=(",", ":")) for c in found["conclusions"])
+    compact = json.JSONEncoder(separators=(",", ":")).encode  # json.dumps' own encoder, made once for every record
+    lines = ",\n".join(map(compact, found["conclusions"]))
     head = json.dumps({k: v for k, v in found.items() if k not in ("conclusions", "tests")})[:-1]
     (stage / "conclusions.json").write_text(f'{head}, "tests": {json.dumps(found["tests"])},\n"conclusions": [\n{lines}\n]}}\n')
     ert = t["ert"][t["ert"]["instance"] == "all"].pivot(index="configuration", columns="level", values="ert")
