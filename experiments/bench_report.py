@@ -1,12 +1,12 @@
 """What ``zrp-ga-report`` costs on a folder of runs, and whether a change keeps what it says.
 
-    python experiments/bench_report.py FOLDER [--repeats 3] [--before REV] [--out DIR] [--write FILE]
+    python experiments/bench_report.py FOLDER [--repeats 3] [--before REV] [--formats none] [--out DIR] [--write FILE]
     python experiments/bench_report.py --compare REPORT_A REPORT_B
 
 Runs ``python -m zrp_ga.cli.report FOLDER --out OUT`` (OUT: one new folder per variant and repeat,
 siblings, so that the runs' paths relative to them are the same) with the code of this tree and,
-with ``--before REV``, with the code of git revision REV too (a copy of that tree first on
-``PYTHONPATH``), the variants in turn so that a shared machine's load falls on both. For each:
+with ``--before REV``, with the code of git revision REV too (each tree first on ``PYTHONPATH``,
+run from the reports' folder, so that neither picks up the other's code), the variants in turn so that a shared machine's load falls on both. For each:
 the wall time and the CPU time of every process of the command, user + system, the drawing
 pool's children included (``resource.getrusage(RUSAGE_CHILDREN)`` of this script, which counts a
 finished child and every descendant it waited for); the load average before and after.
@@ -43,15 +43,16 @@ def _tree(rev: str, where: Path) -> Path:
     return where
 
 
-def _run(folder: str, out: Path, code: Path | None) -> dict:
+def _run(folder: str, out: Path, code: Path | None, extra: tuple[str, ...] = ()) -> dict:
     env = dict(os.environ)
-    if code is not None:
-        env["PYTHONPATH"] = os.pathsep.join([str(code), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    env["PYTHONPATH"] = os.pathsep.join([str(code or HERE), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     load = os.getloadavg()[0]
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "zrp_ga.cli.report", folder, "--out", str(out)], env=env,
-                          capture_output=True, text=True)  # fmt: skip
+    # run from the reports' folder: ``python -m`` puts its working directory first on the path,
+    # which would be this tree's code whatever PYTHONPATH says when run from the repository
+    done = subprocess.run([sys.executable, "-m", "zrp_ga.cli.report", str(Path(folder).resolve()), "--out", str(out), *extra],
+                          env=env, cwd=out.parent, capture_output=True, text=True)  # fmt: skip
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode:
@@ -74,7 +75,11 @@ def _pdf_same(a: bytes, b: bytes) -> bool:
     return not diff or diff[-1] - diff[0] < 16
 
 
-MADE = re.compile(rb"Made \d{4}-\d\d-\d\d \d\d:\d\d UTC|\(commit [0-9a-f]+(, modified)?\)")
+MADE = re.compile(rb"Made \d{4}-\d\d-\d\d \d\d:\d\d UTC| \(commit [0-9a-f]+(, modified)?\)")  # (a copy of a tree has no commit)
+
+
+def _page(text: bytes) -> bytes:
+    return MADE.sub(lambda m: b"Made" if m.group(0).startswith(b"Made") else b"", text)
 
 
 def compare(ref: Path, new: Path) -> list[str]:
@@ -91,7 +96,7 @@ def compare(ref: Path, new: Path) -> list[str]:
         elif n.suffix == ".pdf":
             same = _pdf_same(a, b)
         elif n.name == "index.html":
-            same = MADE.sub(b"Made", a) == MADE.sub(b"Made", b)
+            same = _page(a) == _page(b)
         else:
             same = a == b
         if not same:
@@ -106,27 +111,35 @@ def main() -> None:
     p.add_argument("--before", default=None, metavar="REV", help="also time the code of this git revision (e.g. main)")
     p.add_argument("--out", default=None, help="where the reports go (default: a new temporary folder)")
     p.add_argument("--write", default=None, metavar="FILE", help="the results as Markdown into FILE")
+    p.add_argument("--formats", default=None, help="passed to zrp-ga-report (none: the tables alone, no drawing processes)")
     p.add_argument("--compare", nargs=2, default=None, metavar=("REF", "NEW"), help="only compare two reports' outputs")
     args = p.parse_args()
     if args.compare:
         problems = compare(Path(args.compare[0]), Path(args.compare[1]))
         print("\n".join(problems) or "every file says the same")
         raise SystemExit(1 if problems else 0)
-    out = Path(args.out or tempfile.mkdtemp(prefix="bench_report."))
+    out = Path(args.out or tempfile.mkdtemp(prefix="bench_report.")).resolve()
+    out.mkdir(parents=True, exist_ok=True)
     variants: dict[str, Path | None] = {}
     if args.before:
         variants[f"{args.before}"] = _tree(args.before, out / "tree_before")
     variants["this tree"] = None
+    for v, code in variants.items():  # which code each variant runs, as it will run it
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(code or HERE), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
+        where = subprocess.run([sys.executable, "-c", "import zrp_ga.report.write as w; print(w.__file__)"], env=env, cwd=out,
+                               capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
+        print(f"{v}: {where}")
     uptime = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     results: dict[str, list[dict]] = {v: [] for v in variants}
     for k in range(args.repeats):
         for v, code in variants.items():
-            r = _run(args.folder, out / f"report_{list(variants).index(v)}_{k}", code)
+            extra = ("--formats", args.formats) if args.formats else ()
+            r = _run(args.folder, out / f"report_{list(variants).index(v)}_{k}", code, extra)
             results[v].append(r)
             print(f"{v} #{k + 1}: {r['cpu']:.1f} CPU-s ({r['user']:.1f} user + {r['sys']:.1f} sys), wall {r['wall']:.1f} s, "
                   f"load {r['load'][0]:.2f} -> {r['load'][1]:.2f}", flush=True)  # fmt: skip
     lines = [f"`python experiments/bench_report.py {args.folder} --repeats {args.repeats}"
-             + (f" --before {args.before}" if args.before else "") + "`",
+             + (f" --before {args.before}" if args.before else "") + (f" --formats {args.formats}" if args.formats else "") + "`",
              f"on {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC; `uptime` before: {uptime}", "",
              "| code | CPU-s, median (min-max) | user / sys, median | wall s, median (min-max) | load 1-min, runs |",
              "|---|---|---|---|---|"]  # fmt: skip
