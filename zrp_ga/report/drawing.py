@@ -249,7 +249,8 @@ def _ecdf(runs: list[Run], t: dict, rule: TargetRule, shown: list[str], order: l
     agg = targets.ecdf(hits, start)
     per = {i: targets.ecdf(h, start) for i, h in hits.groupby("instance", sort=True)}
     ends = hits.groupby("configuration")["nevals"].max().to_dict()
-    ecdf_shown = [c for c in shown if c in set(hits["configuration"])]
+    ran = set(hits["configuration"])
+    ecdf_shown = [c for c in shown if c in ran]
     ref_f = dict(zip(floors["instance"], floors["reference"].astype(float)))
     t["ecdf_targets"] = pd.DataFrame([dict(instance=i, k=j, target=v, over_ref=v / ref_f[i]) for i, arr in tg.items()
                                       for j, v in enumerate(arr)])  # fmt: skip
