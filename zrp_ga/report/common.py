@@ -1,5 +1,5 @@
-"""What every module of the report shares: the command's defaults, its error and the Markdown
-writer. The lowest module of the package: it imports no other module of the report."""
+"""What every module of the report shares: the command's defaults, its error, the Markdown
+writer and the CSV writer. The lowest module of the package: it imports no other module of the report."""
 
 from __future__ import annotations
 
