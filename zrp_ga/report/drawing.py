@@ -92,12 +92,24 @@ def draw(runs: list[Run], t: dict, stage: Path, formats: tuple[str, ...], rule: 
     specs = [s for s in (_convergence(runs, t, rule, shown, order), *_ecdf(runs, t, rule, shown, order), _evaluations(t, shown),
                          _main_effects(t), _interactions(t), _ranks(t), _validation(t, shown, order), _fig2(runs, t, rule, order))
              if s is not None]  # fmt: skip
+    _backends(formats + (("svg",) if page else ()))
     out = []
     for spec, svg in zip(specs, _each(functools.partial(_render, stage, formats, style, page), specs, meanwhile)):
         reuse = page and spec["name"] in WIDE and style == "paper"
         out.append(dict(name=spec["name"], title=spec["title"], caption=spec["caption"], alt=spec["alt"], svg=svg,
                         scale=1.5 if reuse else 4 / 3))  # fmt: skip
     return out, shown
+
+
+def _backends(formats: tuple[str, ...]) -> None:
+    """The modules that write ``formats`` imported here, once, rather than by each drawing process."""
+    from matplotlib.backend_bases import get_registered_canvas_class
+
+    for ext in dict.fromkeys(formats):
+        try:
+            get_registered_canvas_class(ext)
+        except (ImportError, ValueError):  # savefig says what is wrong, where it is called
+            pass
 
 
 def _render(stage: Path, formats: tuple[str, ...], style: str, page: bool, spec: dict) -> str:
@@ -132,7 +144,14 @@ def _each(work: Callable[[dict], str], specs: list[dict], meanwhile: Callable[[]
         if meanwhile is not None:
             meanwhile()
         return [work(spec) for spec in specs]
+    import gc
+
     _WORK[:] = [functools.partial(work, spec) for spec in specs]
+    # What exists now (the runs, the tables) lives until the figures are drawn: the collector
+    # leaves it alone, so that neither this process nor a child walks it again (nor copies a
+    # child's inherited pages by touching them).
+    frozen = gc.get_freeze_count()
+    gc.freeze()
     pool = multiprocessing.get_context("fork").Pool(min(cores, len(specs)), initializer=_plain_signals)
     try:
         drawn = pool.map_async(_one, range(len(specs)), chunksize=1)
@@ -152,6 +171,8 @@ def _each(work: Callable[[dict], str], specs: list[dict], meanwhile: Callable[[]
         return figures
     finally:
         _WORK.clear()
+        if not frozen:  # a caller's own frozen objects stay frozen
+            gc.unfreeze()
 
 
 def _plain_signals() -> None:
@@ -228,9 +249,10 @@ def _ecdf(runs: list[Run], t: dict, rule: TargetRule, shown: list[str], order: l
     agg = targets.ecdf(hits, start)
     per = {i: targets.ecdf(h, start) for i, h in hits.groupby("instance", sort=True)}
     ends = hits.groupby("configuration")["nevals"].max().to_dict()
-    ecdf_shown = [c for c in shown if c in set(hits["configuration"])]
-    ref_f = floors.set_index("instance")["reference"]
-    t["ecdf_targets"] = pd.DataFrame([dict(instance=i, k=j, target=v, over_ref=v / float(ref_f.loc[i])) for i, arr in tg.items()
+    ran = set(hits["configuration"])
+    ecdf_shown = [c for c in shown if c in ran]
+    ref_f = dict(zip(floors["instance"], floors["reference"].astype(float)))
+    t["ecdf_targets"] = pd.DataFrame([dict(instance=i, k=j, target=v, over_ref=v / ref_f[i]) for i, arr in tg.items()
                                       for j, v in enumerate(arr)])  # fmt: skip
     lm, names = _lm(t), _names(t)
     reference = {}

@@ -91,10 +91,13 @@ def export(runs: list[Run], labels: list[str], shown: dict[str, dict[str, str]],
         while folder in folders.values():
             folder += "_"
         folders[label] = folder
+    cells: dict[tuple[str, str], list[Run]] = {}
+    for r, lab in zip(runs, labels):
+        cells.setdefault((lab, r.instance), []).append(r)
     left = []
     for label, folder in folders.items():
         for instance in instances:
-            group = [r for r, lab in zip(runs, labels) if lab == label and r.instance == instance]
+            group = cells.get((label, instance), [])
             bad = [r for r in group if not math.isfinite(float(r.best[-1]))]
             left += [(str(r.path), "no finite cost") for r in bad]
             group = [r for r in group if r not in bad]

@@ -161,7 +161,12 @@ def read_convergence(path: Path) -> dict[str, Array]:
     negative one or NaN is no cost: the run is left out, named, not read around. LeftOut names
     the first line that is not. Other columns: numbers, NaN where a field is not one."""
     text = read_text(path / CONVERGENCE)
-    rows = list(csv.reader(io.StringIO(text)))
+    if '"' in text or "\r" in text or "\0" in text:
+        rows = list(csv.reader(io.StringIO(text)))
+    else:  # no quoting, one line end: the fields are the text split at commas, as the csv module splits them
+        rows = [line.split(",") if line else [] for line in text.split("\n")]
+        if rows and not rows[-1]:
+            rows.pop()
     if not rows:
         raise LeftOut("convergence.csv is empty")
     header = rows[0]

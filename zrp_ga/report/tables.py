@@ -43,12 +43,12 @@ def quartiles(x: ArrayLike) -> tuple[float, float, float]:
 def _per_run(runs: list[Run], labels: list[str], shown: dict, keys: list[str], floors: pd.DataFrame,
              primary: pd.DataFrame, refs: set[str]) -> pd.DataFrame:  # fmt: skip
     """``runs``: one row per run (``row``: its index in ``runs``)."""
-    f = floors.set_index("instance")
-    hit = primary.set_index("run")["hit"]
+    f = {i: (float(ref), float(tol)) for i, ref, tol in zip(floors["instance"], floors["reference"], floors["tolerance"])}
+    hit = dict(zip(primary["run"], primary["hit"]))
     budget = min(float(r.columns["nevals"][-1]) for r in runs)
     rows = []
     for i, (r, label) in enumerate(zip(runs, labels)):
-        ref, tol = float(f.loc[r.instance, "reference"]), float(f.loc[r.instance, "tolerance"])
+        ref, tol = f[r.instance]
         ratio = r.final_cost / ref if ref > 0 else math.nan
         rows.append(dict(
             run=str(r.path), row=i, configuration=label, instance=r.instance, **{k: shown[label].get(k, "") for k in keys},

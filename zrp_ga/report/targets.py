@@ -101,16 +101,19 @@ def hits(runs: list[Run], labels: list[str], table: pd.DataFrame, rule: TargetRu
     """One row per (run, level): run, configuration, instance, level, target, ``hit`` (evaluations
     to reach it, inf if never) and ``nevals`` (the run's evaluations in all). Instances without a
     finite reference have no targets."""
-    targets = table.set_index("instance")
-    rows = []
+    names = rule.names()
+    per = {i: [float(v) for v in row] for i, row in zip(table["instance"], table[[f"target_{n}" for n in names]].to_numpy())}
+    cols: dict[str, list] = {k: [] for k in ("run", "configuration", "instance", "level", "target", "hit", "nevals")}
     for r, label in zip(runs, labels):
-        for level in rule.names():
-            target = float(targets.loc[r.instance, f"target_{level}"])
+        for level, target in zip(names, per[r.instance]):
             if math.isnan(target):
                 continue
-            rows.append(dict(run=str(r.path), configuration=label, instance=r.instance, level=level, target=target,
-                             hit=first_hit(r.evals, r.best, target), nevals=r.nevals))  # fmt: skip
-    return pd.DataFrame(rows, columns=["run", "configuration", "instance", "level", "target", "hit", "nevals"])
+            for key, value in zip(cols.values(), (str(r.path), label, r.instance, level, target, first_hit(r.evals, r.best, target),
+                                                  r.nevals)):  # fmt: skip
+                key.append(value)
+    if not cols["run"]:
+        return pd.DataFrame(columns=list(cols))
+    return pd.DataFrame(cols)
 
 
 def ert(hits_: pd.DataFrame, by: list[str]) -> pd.DataFrame:
@@ -118,14 +121,20 @@ def ert(hits_: pd.DataFrame, by: list[str]) -> pd.DataFrame:
     their hit, the others in full) over the number of successful runs; inf when none succeeds.
     Also the runs, the successes and the success rate."""
 
-    def one(g: pd.DataFrame) -> dict:
-        ok = np.isfinite(g["hit"].to_numpy())
-        spent = float(np.where(ok, g["hit"], g["nevals"]).sum())
-        return dict(runs=len(g), successes=int(ok.sum()), success_rate=float(ok.mean()),
-                    ert=spent / ok.sum() if ok.any() else math.inf)  # fmt: skip
-
-    out = [dict(zip(by, key if isinstance(key, tuple) else (key,)), **one(g)) for key, g in hits_.groupby(by, sort=False)]
-    return pd.DataFrame(out, columns=[*by, "runs", "successes", "success_rate", "ert"])
+    columns = [*by, "runs", "successes", "success_rate", "ert"]
+    if not len(hits_):
+        return pd.DataFrame(columns=columns)
+    hit = hits_["hit"].to_numpy(dtype=float)
+    ok = np.isfinite(hit)
+    # the evaluations are whole numbers: their sums are exact in any order
+    each = pd.DataFrame({"ok": ok.astype(np.int64), "spent": np.where(ok, hit, hits_["nevals"].to_numpy(dtype=float))})
+    g = each.groupby([hits_[k] for k in by], sort=False)
+    out = g.agg(runs=("ok", "size"), successes=("ok", "sum"), spent=("spent", "sum")).reset_index()
+    out["runs"], out["successes"] = out["runs"].astype(np.int64), out["successes"].astype(np.int64)
+    out["success_rate"] = out["successes"] / out["runs"]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out["ert"] = np.where(out["successes"] > 0, out["spent"] / out["successes"], math.inf)
+    return out[columns]
 
 
 def ecdf(hits_: pd.DataFrame, start: float = 1.0) -> pd.DataFrame:
@@ -136,17 +145,24 @@ def ecdf(hits_: pd.DataFrame, start: float = 1.0) -> pd.DataFrame:
     labels: list[Any] = []
     evaluations: list[np.ndarray] = []
     fractions: list[np.ndarray] = []
-    for label, g in hits_.groupby("configuration", sort=False):
-        n_pairs = g.groupby(["instance", "level"]).ngroups
-        runs_per_pair = g.groupby(["instance", "level"])["run"].transform("size")
-        weight = 1.0 / (n_pairs * runs_per_pair.to_numpy())
-        ok = np.isfinite(g["hit"].to_numpy())
-        steps = pd.Series(weight[ok]).groupby(g["hit"].to_numpy()[ok]).sum().sort_index()
-        labels += [label] * (len(steps) + 1)  # the starting point, then one row per step
-        evaluations.append(np.r_[float(start), steps.index.to_numpy(dtype=float)])
-        fractions.append(np.r_[0.0, np.cumsum(steps.to_numpy())])
-    if not labels:
+    if not len(hits_):
         return pd.DataFrame(columns=["configuration", "evaluations", "fraction"])
+    code, names = pd.factorize(hits_["configuration"])  # the configurations in their first rows' order
+    pair = hits_.groupby([hits_["configuration"], hits_["instance"], hits_["level"]], sort=False)["run"]
+    runs_per_pair = pair.transform("size").to_numpy()
+    n_pairs = np.bincount(code[np.unique(pair.ngroup().to_numpy(), return_index=True)[1]], minlength=len(names))
+    weight = 1.0 / (n_pairs[code] * runs_per_pair)
+    hit = hits_["hit"].to_numpy(dtype=float)
+    ok = np.isfinite(hit)
+    # each configuration's steps: the weights of its hits summed per evaluation count (in the rows' order)
+    steps = pd.Series(weight[ok]).groupby([code[ok], hit[ok]]).sum()
+    at = steps.index.get_level_values(0).to_numpy()
+    where = np.searchsorted(at, np.arange(len(names) + 1))
+    for k, label in enumerate(names):
+        part = steps.iloc[where[k]:where[k + 1]]
+        labels += [label] * (len(part) + 1)  # the starting point, then one row per step
+        evaluations.append(np.r_[float(start), part.index.get_level_values(1).to_numpy(dtype=float)])
+        fractions.append(np.r_[0.0, np.cumsum(part.to_numpy())])
     df = pd.DataFrame({"configuration": labels, "evaluations": np.concatenate(evaluations), "fraction": np.concatenate(fractions)})
     # a hit at evaluation 1 replaces the starting point
     return df.drop_duplicates(["configuration", "evaluations"], keep="last").reset_index(drop=True)
@@ -189,18 +205,21 @@ def fixed_budget(runs: list[Run], labels: list[str], table: pd.DataFrame, budget
     """Per configuration, instance and budget: the runs and the median over them of (best cost
     within the budget) / f_ref; NaN (no number) where a run stopped by its own budget before
     it (a run that stopped by itself, converged, keeps its final best)."""
-    reference = table.set_index("instance")["reference"]
-    rows = []
+    reference = dict(zip(table["instance"], table["reference"].astype(float)))
+    keys: dict[tuple[str, str, int], list[float]] = {}  # (configuration, instance, budget): the runs' ratios, in order
     for r, label in zip(runs, labels):
-        ref = float(reference.loc[r.instance])
+        ref = reference[r.instance]
         cut = stopped_by_budget(r)
         for b in budgets:
             value = best_at(r.evals, r.best, b) if (b <= r.nevals or not cut) else math.nan
-            rows.append(dict(configuration=label, instance=r.instance, budget=b, ratio=value / ref if ref > 0 else math.nan))
-    df = pd.DataFrame(rows, columns=["configuration", "instance", "budget", "ratio"])
-    return (df.groupby(["configuration", "instance", "budget"], sort=False)["ratio"]
-              .agg(runs="size", median_cost_over_ref=lambda v: float(v.median()) if v.notna().all() else math.nan)
-              .reset_index())  # fmt: skip
+            keys.setdefault((label, r.instance, b), []).append(value / ref if ref > 0 else math.nan)
+    columns = ["configuration", "instance", "budget", "runs", "median_cost_over_ref"]
+    if not keys:
+        return pd.DataFrame(columns=columns)
+    rows = [(c, i, b, len(v), float(np.median(v)) if not any(map(math.isnan, v)) else math.nan) for (c, i, b), v in keys.items()]
+    out = pd.DataFrame(rows, columns=columns)
+    out["budget"] = out["budget"].astype(np.int64)
+    return out
 
 
 ECDF_TARGETS = 51  # as many as COCO's (five per decade over ten decades there)

@@ -15,7 +15,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from zrp_ga.report.common import LEVELS, ROUND_OFF, ReportError, markdown
+from zrp_ga.report.common import LEVELS, ROUND_OFF, ReportError, markdown, write_csv
 from zrp_ga.run import directory
 
 if TYPE_CHECKING:
@@ -40,6 +40,8 @@ def _matches(run: Run, wanted: dict[str, str]) -> bool:
     setting of its algorithm or any key of its resolved config)."""
     from zrp_ga.report.labels import flatten, settings
 
+    if not wanted:
+        return True
     known = {**flatten(run.summary.get("config") or {}), **settings(run), **run.choices, **run.overrides}
     return all(known.get(k) == v for k, v in wanted.items())
 
@@ -104,7 +106,7 @@ def _write_tables(t: dict, stage: Path) -> None:
     names = {"targets": "floors", "within_instances": "within"}
     for name in ("targets", "summary", "per_instance", "ert", "ecdf", "fixed_budget", "statistics", "factors", "runs", "tidy",
                  "within_instances", "reference", "interactions"):  # fmt: skip
-        t[names.get(name, name)].to_csv(stage / f"{name}.csv", index=False)
+        write_csv(t[names.get(name, name)], stage / f"{name}.csv")
     for name in ("targets", "summary", "per_instance", "statistics", "reference"):
         df = t[names.get(name, name)]
         if len(df):
@@ -139,7 +141,8 @@ def _write_tables(t: dict, stage: Path) -> None:
     from zrp_ga.report import conclusions
 
     found = conclusions.records(t)
-    lines = ",\n".join(json.dumps(c, separators=(",", ":")) for c in found["conclusions"])
+    compact = json.JSONEncoder(separators=(",", ":")).encode  # json.dumps' own encoder, made once for every record
+    lines = ",\n".join(map(compact, found["conclusions"]))
     head = json.dumps({k: v for k, v in found.items() if k not in ("conclusions", "tests")})[:-1]
     (stage / "conclusions.json").write_text(f'{head}, "tests": {json.dumps(found["tests"])},\n"conclusions": [\n{lines}\n]}}\n')
     ert = t["ert"][t["ert"]["instance"] == "all"].pivot(index="configuration", columns="level", values="ert")
@@ -148,8 +151,8 @@ def _write_tables(t: dict, stage: Path) -> None:
     f = t["friedman"]
     if f is not None:
         ranks = f["mean_ranks"].rename("mean_rank").reset_index()
-        ranks.to_csv(stage / "ranks.csv", index=False)
-        f["pairs"].to_csv(stage / "ranks_nemenyi.csv", index=False)
+        write_csv(ranks, stage / "ranks.csv")
+        write_csv(f["pairs"], stage / "ranks_nemenyi.csv")
         (stage / "ranks.md").write_text(f"{_friedman_line(t)}\n\n" + markdown(ranks) + "\nNemenyi's pairwise p-values:\n\n"
                                         + markdown(f["pairs"]))  # fmt: skip
 
@@ -241,7 +244,7 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
 
             tex.write(t, stage)
         if "ecdf_targets" in t:
-            t["ecdf_targets"].to_csv(stage / "ecdf_targets.csv", index=False)
+            write_csv(t["ecdf_targets"], stage / "ecdf_targets.csv")
         order = list(t["summary"]["configuration"])
         single = drawing.median_runs(runs, t["labels"], order[:1])[0][1]
         unread = _paper_tables(single, stage)
@@ -249,7 +252,7 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
         notes = [f"not in the IOH export: {p} ({why})" for p, why in ioh_export.export(runs, t["labels"], t["shown"], stage / IOH)]
         notes += [f"no Table 2 or 3: {p} cannot be read" for p in unread]
         t["notes"] = notes
-        t["left_out"].to_csv(stage / "left_out.csv", index=False)
+        write_csv(t["left_out"], stage / "left_out.csv")
         made = command or "zrp-ga-report " + " ".join(map(str, paths)) + f" --out {out}"
         page.write(stage / "index.html", t, figs, runs, made, [str(p) for p in paths], where)
         _publish(stage, out, ioh)
