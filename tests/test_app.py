@@ -160,6 +160,17 @@ def test_info_defaults_and_help(tmp_path):
     assert hydras.stdout == proc.stdout
 
 
+def test_help_into_a_closed_pipe_ends_quietly(tmp_path):
+    """``zrp-ga --help | head -1``: the reader gone, no error line and no traceback."""
+    import os
+
+    read, write = os.pipe()
+    os.close(read)  # every write to the pipe fails (EPIPE), as after head has read its lines
+    proc = subprocess.run([sys.executable, "-m", "zrp_ga.cli", "--help"], stdout=write, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    os.close(write)
+    assert proc.returncode == 1 and proc.stderr == ""
+
+
 def test_a_users_own_config_directory(tmp_path):
     """A robot option of the user's own, from --config-dir or from hydra.searchpath."""
     from zrp_ga import robots

@@ -103,6 +103,9 @@ def cli() -> None:
         with _few_collections(), contextlib.redirect_stderr(held):
             if not _help(sys.argv[1:]):
                 main()
+    except BrokenPipeError:  # stdout closed early (`zrp-ga --help | head`): quiet, as Python's docs advise (signal, "Note on SIGPIPE")
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more written at exit
+        sys.exit(1)
     except (HydraException, OmegaConfBaseException, ValueError, OSError, MemoryError, Refused) as exc:
         if full:
             held.release()
