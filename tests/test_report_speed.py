@@ -149,3 +149,74 @@ def test_drawing_processes_leave_the_collector_as_they_found_it(monkeypatch):
                         meanwhile=lambda: seen.append(gc.get_freeze_count() > 0))  # fmt: skip
     assert got == ["a True", "b True"] and seen == [True]  # frozen in the drawing processes and here meanwhile
     assert gc.get_freeze_count() == 0
+
+
+def _box(tmp_path, name: str, formats: tuple[str, ...]) -> str:
+    from zrp_ga.report import figures
+
+    with figures.style("paper"):
+        return figures.boxplot({"a long configuration name": np.array([1.0, 2.0, 4.0]), "b": np.array([3.0, 5.0])}, "error, mm",
+                               2.5, "LM", "a title", name, tmp_path, formats, page=True)  # fmt: skip
+
+
+def test_each_figure_is_laid_out_once_and_drawn_once_per_format(tmp_path, monkeypatch):
+    """The constrained layout runs once per figure, not at every savefig, and the figure is
+    drawn once per format (no dry draw besides); what each format shows is what matplotlib's own
+    route (``draw_without_rendering``, then each savefig with the layout kept) shows."""
+    from matplotlib.figure import Figure
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+    from PIL import Image
+
+    from zrp_ga.report import figures
+
+    counts = {"layout": 0, "draw": 0}
+    layout, draw = ConstrainedLayoutEngine.execute, Figure.draw
+
+    def counted_layout(self, fig):
+        counts["layout"] += 1
+        return layout(self, fig)
+
+    def counted_draw(self, renderer):
+        counts["draw"] += 1
+        return draw(self, renderer)
+
+    monkeypatch.setattr(ConstrainedLayoutEngine, "execute", counted_layout)
+    monkeypatch.setattr(Figure, "draw", counted_draw)
+    svg = _box(tmp_path, "fast", ("png", "pdf", "svg"))
+    assert counts == {"layout": 1, "draw": 4}  # png, pdf, svg and the page's svg
+    monkeypatch.undo()
+
+    def by_matplotlib(fig, out, name, formats, page=False):
+        fig.draw_without_rendering()
+        fig.set_layout_engine("none")
+        for ext in formats:
+            fig.savefig(out / f"{name}.{ext}", dpi=200, metadata={"Date": None} if ext in ("svg", "pdf") else None)
+        return ""
+
+    monkeypatch.setattr(figures, "save", by_matplotlib)
+    _box(tmp_path, "plain", ("png", "svg"))
+    with Image.open(tmp_path / "fast.png") as a, Image.open(tmp_path / "plain.png") as b:
+        assert a.size == b.size and a.tobytes() == b.tobytes()
+    assert (tmp_path / "fast.svg").read_bytes() == (tmp_path / "plain.svg").read_bytes().replace(b"plain", b"fast")
+    assert "a long configuration name" in svg
+
+
+def test_conclusions_are_put_into_sentences_once(tmp_path, monkeypatch):
+    """The page and the console say the same sentences, made once."""
+    from report_fakes import fake_run
+
+    from zrp_ga import report
+    from zrp_ga.report import conclusions, write
+
+    for i, cost in enumerate([3.0, 2.0, 1.5, 1.2]):
+        fake_run(tmp_path / "runs" / f"r{i}", "I", "ga", [(10, 5.0), (20, cost)], floor=1.0, seed=i)
+    made = []
+    sentences = conclusions.sentences
+    monkeypatch.setattr(conclusions, "sentences", lambda t: made.append(1) or sentences(t))
+    t = report.write_report([tmp_path / "runs"], tmp_path / "out", formats=())
+    said = write.console(t)
+    assert len(made) == 1
+    page = (tmp_path / "out" / "index.html").read_text()
+    for lines in sentences(t).values():
+        for line in lines:
+            assert f"- {line}" in said and line.split(" ")[0] in page

@@ -103,8 +103,15 @@ def styles(n: int) -> list[dict]:
 def save(fig: Figure, out: Path, name: str, formats: tuple[str, ...], page: bool = False) -> str:
     """``fig`` as ``out/name.<ext>`` for each format, its layout computed once for all; returns
     its SVG with the text as text when ``page`` (for the report's page), else ""."""
-    fig.draw_without_rendering()
-    fig.set_layout_engine("none")  # the layout stays as computed: every format draws it once
+    engine = fig.get_layout_engine()
+    if engine is not None:  # the layout alone, not a draw of every artist as well (draw_without_rendering)
+        engine.execute(fig)
+    # No layout engine from here on: the layout stays as computed and each format draws the figure
+    # once. (With "none" matplotlib keeps a placeholder engine, and savefig draws the whole figure
+    # twice, once without output, whenever a figure has an engine; the rc settings say that None
+    # means none, not the user's default layout.)
+    with matplotlib.rc_context({"figure.autolayout": False, "figure.constrained_layout.use": False}):
+        fig.set_layout_engine(None)
     for ext in formats:
         fig.savefig(out / f"{name}.{ext}", dpi=200, metadata={"Date": None} if ext in ("svg", "pdf") else None)
     if not page:

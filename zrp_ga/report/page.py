@@ -281,7 +281,7 @@ def write(path, t: dict, figs: list[dict], runs, command: str, paths: list[str],
     r = t["runs"]
     title = (f"{conclusions.count(r['configuration'].nunique(), 'configuration')} on "
              f"{conclusions.count(t['floors']['instance'].nunique(), 'instance')}, {conclusions.count(len(r), 'run')}")  # fmt: skip
-    said = conclusions.sentences(t)
+    said = t["sentences"] if "sentences" in t else conclusions.sentences(t)  # write_report's, made once
     concl = []
     for heading, lines in said.items():
         if lines:

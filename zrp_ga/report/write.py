@@ -254,6 +254,9 @@ def write_report(paths: list[str | Path], out: str | Path | None = None, target:
         t["notes"] = notes
         write_csv(t["left_out"], stage / "left_out.csv")
         made = command or "zrp-ga-report " + " ".join(map(str, paths)) + f" --out {out}"
+        from zrp_ga.report import conclusions
+
+        t["sentences"] = conclusions.sentences(t)  # once, for the page and the console
         page.write(stage / "index.html", t, figs, runs, made, [str(p) for p in paths], where)
         _publish(stage, out, ioh)
     t.update(shown_in_figures=shown, single_run=str(single.path), out=str(out))
@@ -289,7 +292,7 @@ def console(t: dict, max_rows: int = 12) -> str:
     lines.append(_friedman_line(t))
     if t["friedman"] is not None:
         lines.append("mean ranks: " + ", ".join(f"{k} {v:.2f}" for k, v in t["friedman"]["mean_ranks"].items()))
-    for heading, said in conclusions.sentences(t).items():
+    for heading, said in (t["sentences"] if "sentences" in t else conclusions.sentences(t)).items():
         if said:
             lines.append(f"\n{heading}:")
             lines += [f"- {x}" for x in said]
