@@ -339,9 +339,10 @@ class _Dispatcher:
         key, when the keys were not noted (zrp_ga's sweeper composes a few jobs, not all): a
         swept key changes the key if the first job with a key gets another key with that
         override's next value (composed here: one composition per swept key). Jobs are grouped
-        by their values of such keys; each job's own key is still computed as it is composed, and
-        the worker evolves together only the runs that share it, so that a wrong guess here
-        (keys changed only in combination) costs time, never a result."""
+        by their values of such keys, and a group is sent together when its first job has a key;
+        the worker computes each job's own key, evolves together only the runs that share it and
+        runs a job without one alone (``_batch``), so that a wrong guess here (keys changed only
+        in combination) costs time, never a result."""
         jobs = list(self.todo)
         lines = [dict(_split(o) for o in overrides) for _, overrides in jobs]
         swept = [k for k in dict.fromkeys(k for job in lines for k in job) if len({job.get(k) for job in lines}) > 1]
