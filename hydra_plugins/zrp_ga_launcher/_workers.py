@@ -452,8 +452,9 @@ class _Dispatcher:
             # few ms a job, again in the worker): the worker runs alone, as Hydra's run_job, a job
             # whose key is None (_batch.run_batch), so that only the first job of a group is
             # composed whole here, to send a group whose jobs have no key one at a time
-            early = self.early.pop(tuple(overrides), None)
-            data = pickle.dumps(early) if early is not None else loader.pickled_config(self.launcher.config, overrides)
+            early = self.early.pop(tuple(overrides), None)  # composed to find the groups (and perhaps kept by the loader)
+            data = loader.pickled_config(self.launcher.config, overrides, compose=early is None)
+            data = pickle.dumps(early) if data is None else data
             group = self.group[idx]
             self.left[group] -= 1
             if group not in self.group_keys:
