@@ -101,6 +101,33 @@ def test_the_task_config_is_a_copy_without_hydra(hydra_loader):
         assert cfg[key] != 12345 and ours._get_node(key)._get_parent() is ours
 
 
+def test_the_task_config_is_made_when_something_could_read_it(hydra_loader):
+    """Where ``_task_config_read`` says the task's config need not be made (zrp_ga's own
+    callbacks, no interpolation naming ``hydra`` in the task's part), the typed config of the
+    whole config is that of Hydra's task config (``run_job``'s deep copy, ``hydra`` deleted);
+    a callback of the user's (it gets the job's return) or such an interpolation, at any depth,
+    makes it."""
+    from hydra.types import RunMode
+
+    from zrp_ga.config import typed
+
+    master = hydra_loader.load_configuration("config", ["hydra.mode=MULTIRUN"], RunMode.MULTIRUN)
+    for overrides in (["seed=1", "crossover=sbx"], ["algorithm=lm"], ["instance=ur10_30poses"]):
+        cfg = hydra_loader.load_sweep_config(master, overrides)
+        whole = _batch._names(OmegaConf.to_container(cfg, resolve=False))
+        hydra = whole.pop("hydra")
+        assert not _batch._task_config_read(hydra, whole), overrides
+        theirs = copy.deepcopy(cfg)
+        with open_dict(theirs):
+            del theirs["hydra"]
+        assert typed(cfg) == typed(theirs), overrides
+    mine = {**hydra, "callbacks": {**hydra["callbacks"], "mine": {"_target_": "my_package.Recorder"}}}
+    assert _batch._task_config_read(mine, whole)
+    for odd in ({"note": "${hydra.job.name}"}, {"problem": {**whole["problem"], "x": ["a", {"y": "run ${hydra:job.num}"}]}}):
+        assert _batch._task_config_read(hydra, {**whole, **odd}), odd
+        assert not _batch._task_config_read(hydra, {**whole, **{k: "${problem}" for k in odd}}), odd
+
+
 ODD_STRINGS = ["yes", "No", "y", "null", "NULL", "~", "", "nan", "inf", "Infinity", "-inf", "1e3", "1_000", "0x1F", "0o7", "+1", ".5",
                "2001-12-14", "=", "<<", "-a", "- a", "a: b", "a:b", "a #b", "#a", "/tmp/x/1", "crossover=sbx,seed=1", "a,b", "[a]",
                "{a}", "a b", "x" * 200, "a " * 60, "/" + "d" * 150, "a\nb", "é", "'q'", '"q"', "%a", "@a", "`a", "!a", "&a", "*a",

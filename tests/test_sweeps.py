@@ -16,6 +16,7 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import pickle
 import random
 import re
 import shutil
@@ -106,6 +107,28 @@ def test_options_that_write_outside_their_package_are_composed_by_hydra(hydra_lo
     option that changes it)."""
     jobs = [[o, f"seed={s}"] for o in ("experiment=paper_case", "instance=stanford_30poses") for s in (0, 1)]
     assert _compare_with_hydra(hydra_loader, [], jobs) == 2
+
+
+def test_configs_pickled_for_the_workers_equal_hydras_own(hydra_loader):
+    """``ComposingLoader.pickled_config`` of jobs not kept from the sweeper's check (one config
+    per composition, each job's values set in it before it is pickled): every job's config,
+    unpickled, is Hydra's own composition of the job (YAML and nodes), in any order of values,
+    with values of two types for one key, and after a value that fails."""
+    from hydra.errors import ConfigCompositionException
+    from hydra.types import RunMode
+
+    from hydra_plugins.zrp_ga_launcher._compose import ComposingLoader
+
+    master = hydra_loader.load_configuration("config", ["hydra.mode=MULTIRUN"], RunMode.MULTIRUN)
+    cached = ComposingLoader(hydra_loader, prefetch=False)
+    jobs = [[f"crossover={c}", f"seed={s}", f"crossover.prob={p}"] for c, s, p in
+            [("sbx", 3, 0.5), ("sbx", 0, 0.9), ("blend", 7, 0.5), ("sbx", 3, 0.7), ("blend", 1, 1.0), ("sbx", 5, 1)]]  # fmt: skip
+    jobs += [["algorithm=lm", "problem.seed=3"], ["algorithm=lm", "problem.seed=null"], ["algorithm=lm", "problem.seed=4"]]
+    with pytest.raises(ConfigCompositionException):  # a value that fails, half way through a job's values
+        cached.pickled_config(master, ["crossover=sbx", "seed=2", "crossover.prob=high"])
+    for job in [*jobs, *jobs[::-1]]:
+        ours, theirs = pickle.loads(cached.pickled_config(master, job)), hydra_loader.load_sweep_config(master, job)
+        assert (OmegaConf.to_yaml(ours), _nodes(ours)) == (OmegaConf.to_yaml(theirs), _nodes(theirs)), job
 
 
 @pytest.mark.slow
@@ -645,3 +668,29 @@ def test_run_batch_in_a_fresh_process_does_what_run_job_does(tmp_path):
         assert (ours / "0/.hydra" / name).read_text() == (theirs / "0/.hydra" / name).read_text(), name
     assert (ours / "0/.hydra/hydra.yaml").read_text().replace(str(ours), str(theirs)) == (theirs / "0/.hydra/hydra.yaml").read_text()
     assert _log_lines(ours / "0") == _log_lines(theirs / "0") and (ours / "2" / "zrp-ga.log").exists()
+
+
+def test_a_batch_runs_its_jobs_without_a_batch_key_as_run_job_runs_them(tmp_path):
+    """A batch holding a job whose runs cannot be evolved together (Levenberg-Marquardt: no
+    batch key; the driver sends a group of jobs without computing each one's key): that job runs
+    alone through Hydra's ``run_job`` (``_batch.run_alone``), as the driver sends such a job,
+    and ends as its single run; the GA jobs run together, and each job's callbacks are called
+    once around it."""
+    ours, theirs = tmp_path / "ours", tmp_path / "theirs"
+    common = ["seed=3", *SMALL, "population.generations=4"]
+    script = RUN_BATCH.replace('(["crossover=sbx"], ["crossover=blend"], ["algorithm.elite=999"])',
+                               '(["crossover=sbx"], ["algorithm=lm"], ["crossover=blend"])')
+    script = script.replace("returns = _batch.run_batch(", "alone_jobs = []\nreal = _batch.run_alone\n"
+                            "_batch.run_alone = lambda idx, *a: alone_jobs.append(idx) or real(idx, *a)\nreturns = _batch.run_batch(")
+    script = script.replace('"run_job": with_hydra.status.name', '"run_job": with_hydra.status.name, "alone": alone_jobs')
+    assert script.count("alone_jobs") == 3
+    proc = subprocess.run([sys.executable, "-c", script, str(ours), str(theirs), *common], capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.splitlines()[-1])
+    assert out["alone"] == [1]  # the LM job
+    assert [r[0] for r in out["returns"]] == ["COMPLETED"] * 3
+    assert sorted(c[:2] for c in out["calls"][:6]) == sorted([["start", k] for k in range(3)] + [["end", k] for k in range(3)])
+    assert read_manifest(ours)["status"].tolist() == ["done"] * 3
+    assert json.loads((ours / "1" / "summary.json").read_text())["choices"]["algorithm"] == "lm"
+    for k in (0, 2):  # the GA jobs, together
+        assert not (ours / str(k) / "checkpoint.npz").exists() and (ours / str(k) / "convergence.csv").exists()

@@ -382,14 +382,35 @@ def _container(node: DictConfig) -> dict[Any, Any]:
     return value
 
 
-def _without_hydra(config: DictConfig) -> DictConfig:
+def _without_hydra(config: DictConfig, data: bytes | None = None) -> DictConfig:
     """A copy of ``config`` without its ``hydra`` node, as Hydra's ``run_job`` makes the task's
     config (a deep copy, ``hydra`` deleted): a copy (pickled and unpickled, faster than
-    ``copy.deepcopy``), ``hydra`` deleted."""
-    task_cfg: DictConfig = pickle.loads(pickle.dumps(config))
+    ``copy.deepcopy``; or unpickled from ``data``, ``config`` as it was sent, when only its
+    ``hydra`` node changed since), ``hydra`` deleted."""
+    task_cfg: DictConfig = pickle.loads(pickle.dumps(config) if data is None else data)
     with read_write(task_cfg), open_dict(task_cfg):
         del task_cfg["hydra"]
     return task_cfg
+
+
+OWN_CALLBACKS = frozenset(["zrp_ga.cli.callbacks.Prepare", "zrp_ga.cli.callbacks.Manifest"])  # they read no job's return's cfg
+
+
+def _task_config_read(hydra: dict, task: dict) -> bool:
+    """Whether a job's task config (``JobReturn.cfg``) must be made: the job's callbacks
+    (``hydra``: its hydra node as a container) are not all zrp_ga's own, or an interpolation of
+    the task's part (``task``, a container) names ``hydra`` (the task's config, without that
+    node, would not resolve it as the whole config does)."""
+    callbacks = hydra.get("callbacks") or {}
+    if not all(isinstance(c, dict) and c.get("_target_") in OWN_CALLBACKS for c in callbacks.values()):
+        return True
+    for path in _interpolations(task):
+        value: Any = task
+        for k in path:
+            value = value[k]
+        if "hydra" in value:
+            return True
+    return False
 
 
 # --- the batch -----------------------------------------------------------------------------------------
@@ -397,7 +418,10 @@ class _Job:
     """One job of the batch: its configs, its directory, its log files and its return."""
 
     def __init__(self, idx: int, config: DictConfig | bytes):
+        # its config pickled, as sent (as given: prepare() changes the config's hydra node)
+        self.data = config if isinstance(config, bytes) else pickle.dumps(config)
         self.idx, self.config = idx, pickle.loads(config) if isinstance(config, bytes) else config
+        self.typed: Any = None  # the task's config, typed (zrp_ga.config.typed)
         self.ret = JobReturn()
         self.out = Path()
         self.logs: list[_JobLog] = []
@@ -425,7 +449,10 @@ class _Job:
                 os.path.abspath(output_dir))
         OmegaConf.set_readonly(config.hydra, True)
         self.out = Path(output_dir)
-        task_cfg = _without_hydra(config)
+        # the task's config, a copy without the hydra node, as run_job makes it, when something
+        # could read it other than zrp_ga.config.typed (which leaves the hydra node out itself): a
+        # callback other than zrp_ga's own (the job's return holds it), an interpolation naming hydra
+        task_cfg = _without_hydra(config, self.data) if _task_config_read(hydra, whole) else None
         # Hydra's view of the job (HydraConfig's config): the config itself, rather than a copy of its hydra node
         self.ret.cfg, self.ret.hydra_cfg = task_cfg, config
         self.ret.overrides = list(hydra["overrides"]["task"])
@@ -484,7 +511,7 @@ class _Batch:
                     job.prepare()
                 except Exception as exc:  # a bad config value, a directory that cannot be made
                     job.error = exc
-            ready = [j for j in self.jobs if j.error is None]
+            ready = self.keyed([j for j in self.jobs if j.error is None])
             if not self.logging(ready):
                 for job in ready:
                     job.ret = run_alone(job.idx, job.config, self.hydra_context, self.task_function)
@@ -502,6 +529,26 @@ class _Batch:
         finally:
             instance.cfg = before
         return [job.ret for job in self.jobs]
+
+    def keyed(self, ready: list[_Job]) -> list[_Job]:
+        """The jobs whose runs can be evolved together (a ``batch_key``), their configs typed; the
+        others (a config that is not valid, a run that goes alone: zrp_ga's launcher sends a
+        group of jobs whose keys it did not compute) run here one by one with Hydra's
+        ``run_job``, as the launcher sends a job without a key, their configs as sent."""
+        from zrp_ga.config import typed
+        from zrp_ga.run.sweep import batch_key
+
+        out = []
+        for job in ready:
+            key = None
+            with contextlib.suppress(Exception), job.around():
+                job.typed = typed(job.config if job.ret.cfg is None else job.ret.cfg)  # the hydra node left out
+                key = batch_key(job.typed)
+            if key is not None:
+                out.append(job)
+            else:
+                job.ret = run_alone(job.idx, pickle.loads(job.data), self.hydra_context, self.task_function)
+        return out
 
     def logging(self, ready: list[_Job]) -> bool:
         """Hydra's job logging, configured for the first job, with each job's own log files;
@@ -540,14 +587,12 @@ class _Batch:
 
     def sweep(self, ready: list[_Job]) -> list[Any]:
         """The runs, together (``zrp_ga.cli.main.main``'s part, but the console line)."""
-        from zrp_ga.config import typed
         from zrp_ga.run.sweep import SweepJob, sweep_batch
 
         tasks = []
         for job in ready:
             with job.around():
-                assert job.ret.cfg is not None  # the task's config, set by prepare()
-                tasks.append(SweepJob(typed(job.ret.cfg), *_sweep_job_args(job)))
+                tasks.append(SweepJob(job.typed, *_sweep_job_args(job)))
         return sweep_batch(tasks, around=lambda k: ready[k].around()) if tasks else []
 
     def end(self, job: _Job, value: Any) -> None:

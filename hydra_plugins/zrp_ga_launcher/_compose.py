@@ -105,6 +105,7 @@ class ComposingLoader(ConfigLoader):
         # with notes, the configs of the jobs checked, pickled, for pickled_config (instead of _asked)
         self._pickled: dict[tuple, bytes] = {}
         self._pickled_bytes = 0
+        self._live: dict[tuple, DictConfig] = {}  # per composition, the config pickled_config sets each job's values in
 
     @classmethod
     def wrap(cls, loader: ConfigLoader, enabled: bool = True) -> ComposingLoader:
@@ -186,18 +187,22 @@ class ComposingLoader(ConfigLoader):
             return None
         if key in self._asked or not self.enabled or OmegaConf.select(master_config, "hydra.searchpath"):
             return pickle.dumps(self.load_sweep_config(master_config, sweep_overrides))
-        return pickle.dumps(self._compose(master_config, sweep_overrides))  # not kept again
+        return pickle.dumps(self._compose(master_config, sweep_overrides, reuse=True))  # not kept again
 
     def noted_for(self, master_config: DictConfig, sweep_overrides: list[str], default: Any = None) -> Any:
         """``note(config)`` of the job, noted when it was composed (``default``: not composed yet)."""
         return self.noted.get((id(master_config), tuple(sweep_overrides)), default)
 
-    def _compose(self, master_config: DictConfig, sweep_overrides: list[str]) -> DictConfig:
+    def _compose(self, master_config: DictConfig, sweep_overrides: list[str], reuse: bool = False) -> DictConfig:
+        """The job's config; ``reuse``: for a job composed from a kept composition, one config
+        per composition, its values set anew for each job (the caller pickles it at once and
+        keeps nothing: a copy of the composition unpickled a job costs more than the pickle)."""
         lines = [*master_config.hydra.overrides.hydra, *sweep_overrides]
         overrides = [self._parse(line) for line in lines]
         shape, options, values = self._classify(overrides)
         key = (shape, tuple(options.items()))
         cfg = None if key in self._templates else self._from_base(master_config, shape, options)
+        template = None
         if cfg is not None:  # kept for the jobs with the same options (other values: seeds): put together once
             self._templates[key] = _Composed(pickle.dumps(cfg), list(lines), dict(options), str(master_config.hydra.job.config_name),
                                              _choices(cfg))  # fmt: skip
@@ -210,9 +215,15 @@ class ComposingLoader(ConfigLoader):
                 if fixed:
                     self._fixed_bases.setdefault((shape, fixed), self._templates[key])
                 return cfg
-            cfg = pickle.loads(template.data)
+            cfg = self._live.get(key) if reuse else None
+            if cfg is None:
+                cfg = pickle.loads(template.data)
+            if reuse:  # dropped until this job's values are all set (a value that fails leaves it half set)
+                self._live.pop(key, None)
         self._complete(cfg, overrides, values)
         OmegaConf.copy_cache(from_config=master_config, to_config=cfg)
+        if reuse and template is not None:
+            self._live[key] = cfg
         return cfg
 
     def _parse(self, line: str) -> Override:

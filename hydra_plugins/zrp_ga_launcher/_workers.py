@@ -310,6 +310,7 @@ class _Dispatcher:
         self.noted: Callable[..., Any] | None = None  # the loader's notes of every job's key
         self.group: dict[int, Any] | None = None  # else per job, its group: the values of the overrides that change keys
         self.early: dict[tuple[str, ...], DictConfig] = {}  # configs composed to find the groups, by their overrides
+        self.group_keys: dict[Any, bool] = {}  # per group, whether its first job composed has a batch key
         if self.together:
             noted = getattr(launcher.hydra_context.config_loader, "noted_for", None)
             if not (noted is not None and self._by_key(noted)):
@@ -338,9 +339,10 @@ class _Dispatcher:
         key, when the keys were not noted (zrp_ga's sweeper composes a few jobs, not all): a
         swept key changes the key if the first job with a key gets another key with that
         override's next value (composed here: one composition per swept key). Jobs are grouped
-        by their values of such keys; each job's own key is still computed as it is composed, and
-        the worker evolves together only the runs that share it, so that a wrong guess here
-        (keys changed only in combination) costs time, never a result."""
+        by their values of such keys, and a group is sent together when its first job has a key;
+        the worker computes each job's own key, evolves together only the runs that share it and
+        runs a job without one alone (``_batch``), so that a wrong guess here (keys changed only
+        in combination) costs time, never a result."""
         jobs = list(self.todo)
         lines = [dict(_split(o) for o in overrides) for _, overrides in jobs]
         swept = [k for k in dict.fromkeys(k for job in lines for k in job) if len({job.get(k) for job in lines}) > 1]
@@ -445,6 +447,19 @@ class _Dispatcher:
             data = loader.pickled_config(self.launcher.config, overrides)
             key = self.noted(self.launcher.config, overrides)
             self.left[key] -= 1
+        elif self.group is not None and self.left is not None and hasattr(loader, "pickled_config"):
+            # sent with the jobs of its group, its key not computed here (the config made typed: a
+            # few ms a job, again in the worker): the worker runs alone, as Hydra's run_job, a job
+            # whose key is None (_batch.run_batch), so that only the first job of a group is
+            # composed whole here, to send a group whose jobs have no key one at a time
+            early = self.early.pop(tuple(overrides), None)  # composed to find the groups (and perhaps kept by the loader)
+            data = loader.pickled_config(self.launcher.config, overrides, compose=early is None)
+            data = pickle.dumps(early) if data is None else data
+            group = self.group[idx]
+            self.left[group] -= 1
+            if group not in self.group_keys:
+                self.group_keys[group] = self.key(early if early is not None else pickle.loads(data)) is not None
+            key = group if self.group_keys[group] else None
         else:
             config = self.compose(overrides)
             kept = getattr(loader, "pickled_config", None)  # with notes: the config and key the loader kept as it composed it
