@@ -32,15 +32,10 @@ import tempfile
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).parent))
+from bench_sweep import tree  # a git revision's code, importable from PYTHONPATH
+
 HERE = Path(__file__).resolve().parents[1]
-
-
-def _tree(rev: str, where: Path) -> Path:
-    """A copy of git revision ``rev`` of this repository in ``where``."""
-    where.mkdir(parents=True, exist_ok=True)
-    archive = subprocess.run(["git", "-C", str(HERE), "archive", rev], check=True, capture_output=True).stdout
-    subprocess.run(["tar", "-x", "-C", str(where)], input=archive, check=True)
-    return where
 
 
 def _run(folder: str, out: Path, code: Path | None, extra: tuple[str, ...] = ()) -> dict:
@@ -122,7 +117,7 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     variants: dict[str, Path | None] = {}
     if args.before:
-        variants[f"{args.before}"] = _tree(args.before, out / "tree_before")
+        variants[f"{args.before}"] = tree(args.before, out / "tree_before")
     variants["this tree"] = None
     for v, code in variants.items():  # which code each variant runs, as it will run it
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(code or HERE), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))

@@ -103,7 +103,8 @@ def tree(rev: str, where: Path) -> Path:
     where.mkdir(parents=True, exist_ok=True)
     archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev], check=True, capture_output=True).stdout
     subprocess.run(["tar", "-x", "-C", str(where)], input=archive, check=True)
-    (where / "zrp_ga" / "conf").symlink_to(where / "conf")  # as the installed package ships it
+    if not (where / "zrp_ga" / "conf").exists():
+        (where / "zrp_ga" / "conf").symlink_to(where / "conf")  # as the installed package ships it
     return where
 
 

@@ -41,6 +41,9 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+sys.path.insert(0, str(Path(__file__).parent))
+from bench_sweep import tree  # a git revision's code, importable from PYTHONPATH
+
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["experiment=operator_grid"]
 SETS = list(itertools.product(["one_point", "two_point", "blend", "sbx"], ["gaussian", "polynomial", "uniform_reset"],
@@ -67,16 +70,6 @@ PARTS = [
 
 def load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
-
-
-def tree(rev: str, where: Path) -> Path:
-    """The code of git revision ``rev`` in ``where``, importable from ``PYTHONPATH``."""
-    where.mkdir(parents=True, exist_ok=True)
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev], check=True, capture_output=True).stdout
-    subprocess.run(["tar", "-x", "-C", str(where)], input=archive, check=True)
-    if not (where / "zrp_ga" / "conf").exists():
-        (where / "zrp_ga" / "conf").symlink_to(where / "conf")  # as the installed package ships it
-    return where
 
 
 def grid(out: Path, rev: str | None) -> dict:
